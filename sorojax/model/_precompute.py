@@ -1,0 +1,188 @@
+"""Derived arrays of a linkage, computed once per solve from its primary parameters.
+
+:func:`precompute` evaluates bases, reference strains and section matrices at every
+significant and Zanna point, the rigid inertias, and the constant K and D. Solvers call
+it once, outside their iteration loops, and pass the result to the kernels; because it
+is recomputed from the primary parameters on every call, a changed parameter is never
+stale and ``jax.grad`` reaches E, radii, lengths and masses.
+"""
+
+import math
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+from ._layout import Layout
+from ._link import RigidLink, SoftLink
+from ._linkage import Linkage
+from ._section import section_matrices
+
+_ZANNA = (0.5 - math.sqrt(3.0) / 6.0, 0.5 + math.sqrt(3.0) / 6.0)
+
+
+class DivisionData(eqx.Module):
+    """Per-division arrays (physical units; angular basis rows divided by length).
+
+    Attributes:
+        h: (n_steps,) step lengths between consecutive points [m].
+        Phi_z: (n_steps, 2, 6, n) basis at the two Zanna points of each step.
+        xi_ref_z: (n_steps, 2, 6) reference strain at the Zanna points.
+        Phi: (n_pts, 6, n) basis at the division's points.
+        xi_ref: (n_pts, 6) reference strain at the points.
+        Sigma: (n_pts, 6, 6) stiffness at the points.
+        Upsilon: (n_pts, 6, 6) damping at the points.
+    """
+
+    offset: int = eqx.field(static=True)
+    n_dof: int = eqx.field(static=True)
+    h: Float[Array, " n_steps"]
+    Phi_z: Float[Array, "n_steps 2 6 n"]
+    xi_ref_z: Float[Array, "n_steps 2 6"]
+    Phi: Float[Array, "n_pts 6 n"]
+    xi_ref: Float[Array, "n_pts 6"]
+    Sigma: Float[Array, "n_pts 6 6"]
+    Upsilon: Float[Array, "n_pts 6 6"]
+
+
+class LinkData(eqx.Module):
+    """Per-link arrays.
+
+    Attributes:
+        placement: pose of the link base in the parent's tip frame.
+        joint_Phi: (6, n_j) joint basis.
+        g_i: joint -> body start (rod start or CM).
+        g_f: body end (rod end or CM) -> tip.
+        divisions: per-division data (empty for a rigid link).
+    """
+
+    soft: bool = eqx.field(static=True)
+    parent: int = eqx.field(static=True)
+    joint_offset: int = eqx.field(static=True)
+    placement: Float[Array, "4 4"]
+    joint_Phi: Float[Array, "6 n_j"]
+    g_i: Float[Array, "4 4"]
+    g_f: Float[Array, "4 4"]
+    divisions: tuple[DivisionData, ...]
+
+
+class LinkageData(eqx.Module):
+    """Everything the kernels need, derived from a :class:`Linkage`.
+
+    Attributes:
+        n_dof: number of coordinates.
+        links: per-link data.
+        point_weight: (n_points,) quadrature weight [m] at soft rod points, 1 at rigid
+            centres of mass, 0 elsewhere.
+        point_M: (n_points, 6, 6) inertia density (rod points) or inertia (CM).
+        K: (n_dof, n_dof) generalised stiffness.
+        D: (n_dof, n_dof) generalised damping.
+        gravity: (3,) gravitational acceleration.
+    """
+
+    n_dof: int = eqx.field(static=True)
+    links: tuple[LinkData, ...]
+    point_weight: Float[Array, " n_points"]
+    point_M: Float[Array, "n_points 6 6"]
+    K: Float[Array, "n_dof n_dof"]
+    D: Float[Array, "n_dof n_dof"]
+    gravity: Float[Array, "3"]
+
+
+def _scale_rows(L) -> Array:
+    """Row scaling making q dimensionless: angular rows / L, linear rows * 1."""
+    one = jnp.ones_like(L)
+    return jnp.stack([one / L] * 3 + [one] * 3)
+
+
+def precompute(linkage: Linkage) -> LinkageData:
+    """Evaluate all derived arrays of ``linkage`` (see the module docstring)."""
+    lay: Layout = linkage.layout
+    n = lay.n_dof
+    n_pts = lay.n_points
+    K = jnp.zeros((n, n))
+    D = jnp.zeros((n, n))
+    weight = np.zeros(n_pts)
+    w_dyn = [None] * n_pts  # traced weights (depend on lengths)
+    M_pts: list = [None] * n_pts
+    links = []
+    for i, (link, ll) in enumerate(zip(linkage.links, lay.links, strict=True)):
+        j = link.joint
+        jo, jn = ll.joint_offset, ll.joint_n_dof
+        if jn:
+            K = K.at[jo : jo + jn, jo : jo + jn].add(j.stiffness)
+            D = D.at[jo : jo + jn, jo : jo + jn].add(j.damping)
+        divs = []
+        if isinstance(link, SoftLink):
+            mat = link.material
+            G = mat.G
+            for div, dl in zip(link.divisions, ll.divisions, strict=True):
+                L = div.length
+                S = _scale_rows(L)[:, None]
+                X1 = dl.X1
+                Xz = np.stack([X1[:-1] + (X1[1:] - X1[:-1]) * z for z in _ZANNA], 1)
+                nz = len(X1) - 1
+                Xall = jnp.asarray(np.concatenate([X1, Xz.reshape(-1)]))
+                Phi_all = S * jax.vmap(div.basis)(Xall)
+                xr_all = jax.vmap(div.reference_strain)(Xall)
+                Phi, Phi_z = Phi_all[: len(X1)], Phi_all[len(X1) :]
+                Phi_z = Phi_z.reshape(nz, 2, 6, dl.n_dof)
+                xr, xr_z = xr_all[: len(X1)], xr_all[len(X1) :].reshape(nz, 2, 6)
+                Sigma, Ms, Ups = jax.vmap(
+                    lambda x: section_matrices(div.section, x, mat.E, G, mat.rho, mat.eta)
+                )(jnp.asarray(X1))
+                wL = jnp.asarray(dl.w) * L
+                o, nd = dl.offset, dl.n_dof
+                if nd:
+                    Kd = jnp.einsum("p,pai,pab,pbj->ij", wL, Phi, Sigma, Phi)
+                    Dd = jnp.einsum("p,pai,pab,pbj->ij", wL, Phi, Ups, Phi)
+                    K = K.at[o : o + nd, o : o + nd].add(Kd)
+                    D = D.at[o : o + nd, o : o + nd].add(Dd)
+                for k in range(len(X1)):
+                    w_dyn[dl.first_point + k] = wL[k]
+                    M_pts[dl.first_point + k] = Ms[k]
+                divs.append(
+                    DivisionData(
+                        offset=dl.offset,
+                        n_dof=dl.n_dof,
+                        h=jnp.asarray(np.diff(X1)) * L,
+                        Phi_z=Phi_z,
+                        xi_ref_z=xr_z,
+                        Phi=Phi,
+                        xi_ref=xr,
+                        Sigma=Sigma,
+                        Upsilon=Ups,
+                    )
+                )
+        else:
+            assert isinstance(link, RigidLink)
+            weight[ll.cm_point] = 1.0
+            M_pts[ll.cm_point] = link.spatial_inertia()
+        links.append(
+            LinkData(
+                soft=ll.soft,
+                parent=ll.parent,
+                joint_offset=jo,
+                placement=linkage.placements[i],
+                joint_Phi=j.basis(),
+                g_i=link.g_i,
+                g_f=link.g_f,
+                divisions=tuple(divs),
+            )
+        )
+    zero6 = jnp.zeros((6, 6))
+    point_M = jnp.stack([zero6 if m is None else m for m in M_pts])
+    point_weight = jnp.stack(
+        [jnp.asarray(weight[p]) if w_dyn[p] is None else w_dyn[p] for p in range(n_pts)]
+    )
+    return LinkageData(
+        n_dof=n,
+        links=tuple(links),
+        point_weight=point_weight,
+        point_M=point_M,
+        K=K,
+        D=D,
+        gravity=linkage.gravity,
+    )
