@@ -1,0 +1,30 @@
+"""Test configuration: float64, strict promotion, persistent compile cache, fixtures.
+
+JAX compiles are the slow part of this suite on small CI machines: tests share model
+*structures* (a jitted sorojax function compiles once per structure, whatever the
+parameter values), and the persistent compilation cache keeps compiled programs
+between runs on the same machine.
+"""
+
+import os
+import pathlib
+
+import jax
+import pytest
+
+jax.config.update("jax_enable_x64", True)
+jax.config.update("jax_numpy_dtype_promotion", "strict")
+jax.config.update("jax_numpy_rank_promotion", "raise")
+_cache = os.environ.get(
+    "SOROJAX_TEST_JAX_CACHE",
+    str(pathlib.Path(__file__).resolve().parent.parent / ".jax_cache"),
+)
+jax.config.update("jax_compilation_cache_dir", _cache)
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+jax.config.update("jax_persistent_cache_min_entry_size_bytes", -1)
+
+
+@pytest.fixture
+def key():
+    """A fixed PRNG key."""
+    return jax.random.PRNGKey(0)
