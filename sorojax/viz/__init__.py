@@ -1,0 +1,12 @@
+"""Plots of linkage configurations (matplotlib, imported only when a plot is made).
+
+``plot_configuration`` (alias ``plotq``) draws any configuration in 3D;
+``plot_reference`` (alias ``plotq0``) draws q = 0 with the coordinate frames.
+"""
+
+from ._plot import (
+    plot_configuration as plot_configuration,
+    plot_reference as plot_reference,
+    plotq as plotq,
+    plotq0 as plotq0,
+)
