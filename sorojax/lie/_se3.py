@@ -14,7 +14,8 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from ._so3 import dexp_so3, dexp_so3_inv, exp_so3, hat3, log_so3, vee3
+from ._so3 import dexp_so3_inv, hat3, log_so3, vee3
+from ._utils import so3_coeffs
 
 
 def make_se3(R: Float[Array, "3 3"], p: Float[Array, "3"]) -> Float[Array, "4 4"]:
@@ -73,7 +74,13 @@ def exp_se3(xi: Float[Array, "6"]) -> Float[Array, "4 4"]:
     """
     xi = jnp.asarray(xi)
     w, v = xi[:3], xi[3:]
-    return make_se3(exp_so3(w), dexp_so3(w) @ v)
+    W = hat3(w)
+    W2 = W @ W
+    A, B, C = so3_coeffs(w @ w)
+    eye = jnp.eye(3, dtype=W.dtype)
+    R = eye + A * W + B * W2
+    J = eye + B * W + C * W2
+    return make_se3(R, J @ v)
 
 
 def log_se3(g: Float[Array, "4 4"]) -> Float[Array, "6"]:

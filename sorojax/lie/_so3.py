@@ -16,9 +16,7 @@ from ._utils import (
     get_log_epsilon,
     half_cot_t2,
     horner,
-    one_minus_cos_t2,
-    sinc_t2,
-    t_minus_sin_t2,
+    so3_coeffs,
 )
 
 
@@ -70,8 +68,9 @@ def exp_so3(w: Float[Array, "3"]) -> Float[Array, "3 3"]:
     w = jnp.asarray(w)
     W = hat3(w)
     theta2 = w @ w
+    A, B, _ = so3_coeffs(theta2)
     eye = jnp.eye(3, dtype=W.dtype)
-    return eye + sinc_t2(theta2) * W + one_minus_cos_t2(theta2) * (W @ W)
+    return eye + A * W + B * (W @ W)
 
 
 def log_so3(R: Float[Array, "3 3"]) -> Float[Array, "3"]:
@@ -147,8 +146,9 @@ def dexp_so3(w: Float[Array, "3"]) -> Float[Array, "3 3"]:
     w = jnp.asarray(w)
     W = hat3(w)
     theta2 = w @ w
+    _, B, C = so3_coeffs(theta2)
     eye = jnp.eye(3, dtype=W.dtype)
-    return eye + one_minus_cos_t2(theta2) * W + t_minus_sin_t2(theta2) * (W @ W)
+    return eye + B * W + C * (W @ W)
 
 
 def dexp_so3_inv(w: Float[Array, "3"]) -> Float[Array, "3 3"]:

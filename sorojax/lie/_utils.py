@@ -26,6 +26,7 @@ from collections.abc import Callable, Sequence
 from fractions import Fraction
 
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
 NUM_TAYLOR_TERMS = 16
@@ -80,39 +81,47 @@ def get_log_epsilon(dtype) -> float:
     return 0.1
 
 
-def horner(coeffs: Sequence[float], x: Float[Array, "..."]) -> Float[Array, "..."]:
-    """Evaluate ``sum_k coeffs[k] * x**k`` with Horner's scheme.
+def horner(
+    coeffs: Sequence[Sequence[float]] | Sequence[float], x: Float[Array, ""]
+) -> Float[Array, "*k"]:
+    """Evaluate one or several polynomials in a scalar with Horner's scheme.
 
     Args:
-        coeffs: Polynomial coefficients, lowest order first.
-        x: Evaluation point(s).
+        coeffs: Coefficients lowest order first, either a sequence of floats
+            (one polynomial) or a sequence of length-``k`` rows (``k``
+            polynomials evaluated together as a vector).
+        x: Scalar evaluation point.
 
     Returns:
-        The polynomial value, with the dtype of ``x``.
+        The polynomial value(s), with the dtype of ``x``.
     """
-    acc = jnp.zeros_like(x) + coeffs[-1]
-    for c in reversed(coeffs[:-1]):
-        acc = acc * x + c
+    x = jnp.asarray(x)
+    table = np.asarray(coeffs, dtype=np.float64)
+    acc = jnp.asarray(table[-1], dtype=x.dtype)
+    for row in table[-2::-1]:
+        acc = acc * x + jnp.asarray(row, dtype=x.dtype)
     return acc
 
 
 def series_or_closed_form(
     theta2: Float[Array, ""],
-    coeffs: Sequence[float],
-    closed_form: Callable[[Float[Array, ""]], Float[Array, ""]],
+    coeffs: Sequence[Sequence[float]] | Sequence[float],
+    closed_form: Callable[[Float[Array, ""]], Float[Array, "*k"]],
     threshold: float | None = None,
-) -> Float[Array, ""]:
-    """Evaluate a smooth function of ``theta2`` with the double-where trick.
+) -> Float[Array, "*k"]:
+    """Evaluate smooth function(s) of ``theta2`` with the double-where trick.
 
     Args:
         theta2: The squared angle (non-negative scalar).
-        coeffs: Taylor coefficients in powers of ``theta2`` (lowest first).
-        closed_form: Closed form of the function, valid for ``theta2 > 0``.
+        coeffs: Taylor coefficients in powers of ``theta2`` (lowest first), in
+            the layout accepted by :func:`horner`.
+        closed_form: Closed form(s), valid for ``theta2 > 0``, returning an
+            array of the same shape as the Horner result.
         threshold: Switching threshold; defaults to ``get_epsilon(dtype)``.
 
     Returns:
-        The Taylor polynomial for ``theta2 < threshold`` and the closed form
-        otherwise; both branches have finite values and derivatives everywhere.
+        The Taylor polynomial(s) for ``theta2 < threshold`` and the closed
+        form(s) otherwise; both branches have finite values and derivatives.
     """
     theta2 = jnp.asarray(theta2)
     if threshold is None:
@@ -123,7 +132,7 @@ def series_or_closed_form(
 
 
 # ---------------------------------------------------------------------------
-# Exact Taylor coefficients (general terms derived by hand, see docstrings).
+# Exact Taylor coefficients (general terms derived by hand, see comments).
 # ---------------------------------------------------------------------------
 
 
@@ -142,6 +151,11 @@ def _coeffs(term: Callable[[int], Fraction]) -> tuple[float, ...]:
 
 def _f(n: int) -> Fraction:
     return Fraction(math.factorial(n))
+
+
+def _table(*columns: tuple[float, ...]) -> tuple[tuple[float, ...], ...]:
+    """Stack coefficient sequences as rows ``(c_n of f_1, ..., c_n of f_k)``."""
+    return tuple(zip(*columns, strict=True))
 
 
 _BERNOULLI = _bernoulli(2 * NUM_TAYLOR_TERMS + 2)
@@ -166,54 +180,49 @@ DEXP_A2_COEFFS = _coeffs(lambda n: (-1) ** n * Fraction(1 - n) / _f(2 * n + 3))
 DEXP_A3_COEFFS = _coeffs(lambda n: (-1) ** n * Fraction(n + 1) / _f(2 * n + 4))
 DEXP_A4_COEFFS = _coeffs(lambda n: (-1) ** n * Fraction(n + 1) / _f(2 * n + 5))
 
+_SO3_TABLE = _table(SINC_COEFFS, ONE_MINUS_COS_COEFFS, T_MINUS_SIN_COEFFS)
+_DEXP_SE3_TABLE = _table(
+    DEXP_A1_COEFFS, DEXP_A2_COEFFS, DEXP_A3_COEFFS, DEXP_A4_COEFFS
+)
+
 
 # ---------------------------------------------------------------------------
 # Coefficient functions of theta2 (all smooth, NaN-free derivatives).
 # ---------------------------------------------------------------------------
 
 
-def _sin_cos(theta2: Float[Array, ""]) -> tuple[Array, Array, Array]:
-    t = jnp.sqrt(theta2)
-    return t, jnp.sin(t), jnp.cos(t)
+def so3_coeffs(theta2: Float[Array, ""]) -> tuple[Array, Array, Array]:
+    """Return ``(sin t/t, (1 - cos t)/t^2, (t - sin t)/t^3)`` for ``t^2 = theta2``.
 
+    These are the coefficients of Rodrigues' formula and of the SO(3) tangent
+    map. ``1 - cos t`` is evaluated as ``2 sin(t/2)^2`` (no cancellation).
 
-def _two_sin_half_sq(t: Float[Array, ""]) -> Float[Array, ""]:
-    """``1 - cos t`` computed without cancellation as ``2 sin(t/2)^2``."""
-    return 2.0 * jnp.sin(0.5 * t) ** 2
+    Args:
+        theta2: Squared rotation angle.
 
-
-def sinc_t2(theta2: Float[Array, ""]) -> Float[Array, ""]:
-    """Return ``sin(t)/t`` with ``t = sqrt(theta2)``."""
-
-    def closed(x):
-        t, s, _ = _sin_cos(x)
-        return s / t
-
-    return series_or_closed_form(theta2, SINC_COEFFS, closed)
-
-
-def one_minus_cos_t2(theta2: Float[Array, ""]) -> Float[Array, ""]:
-    """Return ``(1 - cos t)/t^2`` with ``t = sqrt(theta2)``."""
+    Returns:
+        The three coefficients as scalars.
+    """
 
     def closed(x):
         t = jnp.sqrt(x)
-        return _two_sin_half_sq(t) / x
+        s = jnp.sin(t)
+        one_minus_c = 2.0 * jnp.sin(0.5 * t) ** 2
+        return jnp.stack([s / t, one_minus_c / x, (t - s) / (t * x)])
 
-    return series_or_closed_form(theta2, ONE_MINUS_COS_COEFFS, closed)
-
-
-def t_minus_sin_t2(theta2: Float[Array, ""]) -> Float[Array, ""]:
-    """Return ``(t - sin t)/t^3`` with ``t = sqrt(theta2)``."""
-
-    def closed(x):
-        t, s, _ = _sin_cos(x)
-        return (t - s) / (t * x)
-
-    return series_or_closed_form(theta2, T_MINUS_SIN_COEFFS, closed)
+    out = series_or_closed_form(theta2, _SO3_TABLE, closed)
+    return out[0], out[1], out[2]
 
 
 def half_cot_t2(theta2: Float[Array, ""]) -> Float[Array, ""]:
-    """Return ``(1 - (t/2) cot(t/2))/t^2``; finite for ``t < 2 pi``."""
+    """Return ``(1 - (t/2) cot(t/2))/t^2`` for ``t^2 = theta2``; finite for ``t < 2 pi``.
+
+    Args:
+        theta2: Squared rotation angle.
+
+    Returns:
+        The coefficient of ``W^2`` in the inverse SO(3) tangent map.
+    """
 
     def closed(x):
         h = 0.5 * jnp.sqrt(x)
@@ -229,27 +238,27 @@ def dexp_se3_coeffs(
 
     ``T(Omega) = I + a1 ad + a2 ad^2 + a3 ad^3 + a4 ad^4`` with ``ad = ad(Omega)``
     and ``theta2 = |w|^2`` (``w`` the angular part of ``Omega``).
+
+    Args:
+        theta2: Squared rotation angle.
+
+    Returns:
+        The four coefficients as scalars.
     """
 
-    def a1(x):
-        t, s, _ = _sin_cos(x)
-        return (4.0 * _two_sin_half_sq(t) - t * s) / (2.0 * x)
+    def closed(x):
+        t = jnp.sqrt(x)
+        s, c = jnp.sin(t), jnp.cos(t)
+        one_minus_c = 2.0 * jnp.sin(0.5 * t) ** 2
+        ts = t * s
+        return jnp.stack(
+            [
+                (4.0 * one_minus_c - ts) / (2.0 * x),
+                (4.0 * t - 5.0 * s + t * c) / (2.0 * x * t),
+                (2.0 * one_minus_c - ts) / (2.0 * x * x),
+                (2.0 * t - 3.0 * s + t * c) / (2.0 * x * x * t),
+            ]
+        )
 
-    def a2(x):
-        t, s, c = _sin_cos(x)
-        return (4.0 * t - 5.0 * s + t * c) / (2.0 * x * t)
-
-    def a3(x):
-        t, s, _ = _sin_cos(x)
-        return (2.0 * _two_sin_half_sq(t) - t * s) / (2.0 * x * x)
-
-    def a4(x):
-        t, s, c = _sin_cos(x)
-        return (2.0 * t - 3.0 * s + t * c) / (2.0 * x * x * t)
-
-    return (
-        series_or_closed_form(theta2, DEXP_A1_COEFFS, a1),
-        series_or_closed_form(theta2, DEXP_A2_COEFFS, a2),
-        series_or_closed_form(theta2, DEXP_A3_COEFFS, a3),
-        series_or_closed_form(theta2, DEXP_A4_COEFFS, a4),
-    )
+    out = series_or_closed_form(theta2, _DEXP_SE3_TABLE, closed)
+    return out[0], out[1], out[2], out[3]
