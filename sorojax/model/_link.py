@@ -48,7 +48,9 @@ class Division(eqx.Module):
         section: cross-section (profile of X1 in [0, 1] over this division).
         basis: strain basis (active modes and polynomial orders).
         n_gauss: number of interior Gauss-Legendre points (the end points are added
-            with zero weight). Default ``max(5, max_order + 3)``.
+            with zero weight); they are also the Magnus integration nodes, so they
+            set the kinematic accuracy (4th order in their spacing). Default
+            ``max(8, 2 max_order + 4)``.
         xi_ref: reference (stress-free) strain, a 6-vector or a function of X1
             returning one; default the straight rod (0, 0, 0, 1, 0, 0).
     """
@@ -83,7 +85,7 @@ class Division(eqx.Module):
                 "CustomBasis."
             )
         if n_gauss is None:
-            n_gauss = max(5, basis.max_order + 3)
+            n_gauss = max(8, 2 * basis.max_order + 4)
         if not isinstance(n_gauss, int | np.integer) or n_gauss < 1:
             raise ValueError(
                 f"Division.n_gauss = {n_gauss!r}: give an integer >= 1 (number of "

@@ -120,7 +120,7 @@ def precompute(linkage: Linkage) -> LinkageData:
             G = mat.G
             for div, dl in zip(link.divisions, ll.divisions, strict=True):
                 L = div.length
-                S = _scale_rows(L)[:, None]
+                S = _scale_rows(L)[None, :, None]
                 X1 = dl.X1
                 Xz = np.stack([X1[:-1] + (X1[1:] - X1[:-1]) * z for z in _ZANNA], 1)
                 nz = len(X1) - 1
