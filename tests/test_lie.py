@@ -136,7 +136,7 @@ def _batched(f):
 
 
 def _central_jacobian(f, x, h=1e-6):
-    """Central finite-difference Jacobian of f at x (output shape f(x).shape + x.shape)."""
+    """Central finite-difference Jacobian of f at x, shape f(x).shape + x.shape."""
     x = jnp.asarray(x)
     flat = x.reshape(-1)
     basis = jnp.eye(flat.size, dtype=x.dtype)

@@ -91,6 +91,11 @@ def log_so3(R: Float[Array, "3 3"]) -> Float[Array, "3"]:
 
     At exactly ``pi`` either of the two valid answers ``+-pi n`` is returned.
 
+    Derivatives along rotations are continuous everywhere below pi. Derivatives
+    with respect to raw matrix entries in directions *off* the rotation manifold
+    (non-orthogonal perturbations) differ between the ``cos t >= 0`` and
+    ``cos t < 0`` branches, which extend log differently to general matrices.
+
     Args:
         R: A 3x3 rotation matrix.
 

@@ -215,7 +215,7 @@ def so3_coeffs(theta2: Float[Array, ""]) -> tuple[Array, Array, Array]:
 
 
 def half_cot_t2(theta2: Float[Array, ""]) -> Float[Array, ""]:
-    """Return ``(1 - (t/2) cot(t/2))/t^2`` for ``t^2 = theta2``; finite for ``t < 2 pi``.
+    """Return ``(1 - (t/2) cot(t/2))/t^2``, finite for ``t < 2 pi``.
 
     Args:
         theta2: Squared rotation angle.
