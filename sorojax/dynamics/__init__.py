@@ -2,9 +2,10 @@
 
 from ._elastic import damping_matrix as damping_matrix, stiffness_matrix as stiffness_matrix
 from ._external import (
-    custom_force as custom_force,
     external_force as external_force,
-    gravity_force as gravity_force,
-    point_wrench_force as point_wrench_force,
+    external_force_recursive as external_force_recursive,
+    external_wrenches as external_wrenches,
+    gravity_wrenches as gravity_wrenches,
+    point_wrenches as point_wrenches,
 )
 from ._generalized import generalized_external_force as generalized_external_force

@@ -2,9 +2,11 @@
 
 DESIGN.md section 4: F = sum_p w_p J_p^T M_p Ad(g_p)^-1 G + sum_k J_k^T W_k + custom,
 with G = (0, 0, 0, gravity), w_p the quadrature weight [m] at rod points (1 at rigid
-centres of mass) and M_p the inertia density (or the rigid inertia). Global point
-wrenches are rotated into the body frame of their point; follower wrenches are already
-there.
+centres of mass) and M_p the inertia density (or the rigid inertia). All loads are
+first gathered as one array of body-frame wrenches at the significant points
+(:func:`external_wrenches`); the generalised force is then either ``J^T W`` (when the
+Jacobians are at hand) or the backward recursion of
+:mod:`sorojax.dynamics._wrench_recursion` (statics: no Jacobians formed).
 """
 
 import jax.numpy as jnp
@@ -12,40 +14,47 @@ from jaxtyping import Array, Float
 
 from ..model._linkage import Linkage
 from ..model._precompute import LinkageData
+from ._wrench_recursion import force_from_wrenches, poses_with_records
 
 
-def gravity_force(
-    data: LinkageData, g: Float[Array, "n 4 4"], J: Float[Array, "n 6 d"]
-) -> Float[Array, " d"]:
-    """Generalised gravity force ``sum_p w_p J_p^T M_p (0, R_p^T a)``."""
+def gravity_wrenches(data: LinkageData, g: Float[Array, "n 4 4"]) -> Float[Array, "n 6"]:
+    """Weighted body-frame gravity wrenches ``w_p M_p (0, R_p^T a)``."""
     a_body = jnp.einsum("pji,j->pi", g[:, :3, :3], data.gravity)  # R^T a
     G_body = jnp.concatenate([jnp.zeros_like(a_body), a_body], axis=1)
-    W = data.point_weight[:, None] * jnp.einsum("pab,pb->pa", data.point_M, G_body)
-    return jnp.einsum("pai,pa->i", J, W)
+    return data.point_weight[:, None] * jnp.einsum("pab,pb->pa", data.point_M, G_body)
 
 
-def point_wrench_force(
-    linkage: Linkage, t, g: Float[Array, "n 4 4"], J: Float[Array, "n 6 d"]
-) -> Float[Array, " d"]:
-    """Generalised force of the linkage's point wrenches at time ``t``."""
-    F = jnp.zeros(J.shape[-1], dtype=J.dtype)
+def point_wrenches(linkage: Linkage, t, g: Float[Array, "n 4 4"]) -> Float[Array, "n 6"]:
+    """Body-frame point wrenches of the linkage at time ``t``, one row per point."""
+    W = jnp.zeros((g.shape[0], 6), dtype=g.dtype)
     for pw in linkage.point_wrenches:
         idx = linkage.point_index(pw)
-        W = pw.value(t)
+        w = pw.value(t)
         if not pw.follower:
             Rt = g[idx, :3, :3].T
-            W = jnp.concatenate([Rt @ W[:3], Rt @ W[3:]])
-        F = F + J[idx].T @ W
-    return F
+            w = jnp.concatenate([Rt @ w[:3], Rt @ w[3:]])
+        W = W.at[idx].add(w)
+    return W
 
 
-def custom_force(data: LinkageData, W: Float[Array, "n 6"], J) -> Float[Array, " d"]:
-    """Generalised force of the custom hook's wrenches (distributed on rods, point at CMs)."""
-    return jnp.einsum("pai,pa->i", J, data.point_weight[:, None] * W)
+def custom_wrenches(linkage: Linkage, data: LinkageData, t, q, qd, kin) -> Array:
+    """Weighted wrenches of the custom hook (distributed on rods, point at CMs)."""
+    W = jnp.asarray(linkage.custom_wrench(t, q, qd, kin))  # type: ignore[misc]
+    if W.shape != (kin.g.shape[0], 6):
+        raise ValueError(
+            f"Linkage.custom_wrench returned shape {W.shape}; expected "
+            f"({kin.g.shape[0]}, 6) (one body-frame wrench per significant point)."
+        )
+    return data.point_weight[:, None] * W
+
+
+def external_wrenches(linkage: Linkage, data: LinkageData, t, g) -> Array:
+    """Gravity and point wrenches at every significant point (body frames, weighted)."""
+    return gravity_wrenches(data, g) + point_wrenches(linkage, t, g)
 
 
 def external_force(linkage: Linkage, data: LinkageData, t, q, qd, kin) -> Array:
-    """Total generalised external force (gravity + point wrenches + custom hook).
+    """Total generalised external force ``J^T W`` given the kinematics ``kin``.
 
     Args:
         linkage: the model (static loads and hook).
@@ -57,14 +66,16 @@ def external_force(linkage: Linkage, data: LinkageData, t, q, qd, kin) -> Array:
     Returns:
         ``(n_dof,)`` generalised force.
     """
-    F = gravity_force(data, kin.g, kin.J)
-    F = F + point_wrench_force(linkage, t, kin.g, kin.J)
+    W = external_wrenches(linkage, data, t, kin.g)
     if linkage.custom_wrench is not None:
-        W = jnp.asarray(linkage.custom_wrench(t, q, qd, kin))
-        if W.shape != (kin.g.shape[0], 6):
-            raise ValueError(
-                f"Linkage.custom_wrench returned shape {W.shape}; expected "
-                f"({kin.g.shape[0]}, 6) (one body-frame wrench per significant point)."
-            )
-        F = F + custom_force(data, W, kin.J)
-    return F
+        W = W + custom_wrenches(linkage, data, t, q, qd, kin)
+    return jnp.einsum("pai,pa->i", kin.J, W)
+
+
+def external_force_recursive(linkage: Linkage, data: LinkageData, t, q) -> Array:
+    """Generalised external force at rest (qd = 0) without forming Jacobians.
+
+    Only for linkages without a custom hook (the hook may need the Jacobians).
+    """
+    g, records = poses_with_records(data, q)
+    return force_from_wrenches(data, records, external_wrenches(linkage, data, t, g), q)

@@ -20,18 +20,17 @@ import jax.numpy as jnp
 from jax import lax
 from jaxtyping import Array, Float
 
-from ..lie import Ad_inv, ad, dexp_se3, exp_se3
+from ..lie import Ad_inv, ad
 from ..model._precompute import DivisionData, LinkageData
+from ._step import Ad_inv_Rp, exp_and_tangent, pose
 
 _C = math.sqrt(3.0) / 12.0
 
 
 def _joint_step(g, J, Phi, q_j, offset):
-    Omega = Phi @ q_j
-    E = exp_se3(Omega)
-    TdO = dexp_se3(Omega) @ Phi
-    J = J.at[:, offset : offset + Phi.shape[1]].add(TdO)
-    return g @ E, Ad_inv(E) @ J
+    R, p, T = exp_and_tangent(Phi @ q_j)
+    J = J.at[:, offset : offset + Phi.shape[1]].add(T @ Phi)
+    return g @ pose(R, p), Ad_inv_Rp(R, p) @ J
 
 
 def _division_scan(g0, J0, dd: DivisionData, q):
@@ -46,12 +45,12 @@ def _division_scan(g0, J0, dd: DivisionData, q):
         xi2 = P[1] @ q_d + r[1]
         c = _C * h * h
         Omega = 0.5 * h * (xi1 + xi2) + c * (ad(xi1) @ xi2)
-        E = exp_se3(Omega)
-        g = g @ E
+        R, p, T = exp_and_tangent(Omega)
+        g = g @ pose(R, p)
         if n:
             dOmega = 0.5 * h * (P[0] + P[1]) + c * (ad(xi1) @ P[1] - ad(xi2) @ P[0])
-            J = J.at[:, o : o + n].add(dexp_se3(Omega) @ dOmega)
-        J = Ad_inv(E) @ J
+            J = J.at[:, o : o + n].add(T @ dOmega)
+        J = Ad_inv_Rp(R, p) @ J
         return (g, J), (g, J)
 
     _, (gs, Js) = lax.scan(step, (g0, J0), (dd.h, dd.Phi_z, dd.xi_ref_z))

@@ -2,10 +2,13 @@
 
 The residual ``r(q) = K q - lambda F(q, 0, t)`` is Jacobi-scaled by diag(K), so the
 solver's absolute tolerance reads as a coordinate tolerance whatever the stiffness
-units. The Jacobian comes from autodiff. For very large loads the load factor lambda
-goes 1/n, 2/n, ..., 1 (``load_steps = n``), each solve warm-started from the last.
+units. The Jacobian comes from autodiff. For large loads the load factor lambda goes
+1/n, 2/n, ..., 1, each solve warm-started from the last; by default n is chosen from the
+size of the scaled residual at the start (automatic load stepping), so the straight rod
+does not jump to a far (e.g. looped) equilibrium branch.
 Gradients flow through the final solve by the implicit function theorem
 (``optx.ImplicitAdjoint``); the earlier load steps only provide its starting point.
+All steps run in one ``lax.scan``, so the solver is compiled once.
 """
 
 import equinox as eqx
@@ -16,7 +19,7 @@ from jax import lax
 from jaxtyping import Array, ArrayLike
 
 from .._results import RESULTS, StaticsSolution
-from ..dynamics._external import external_force
+from ..dynamics._external import external_force, external_force_recursive
 from ..dynamics._generalized import kinematics_from_data
 from ..kinematics._api import _as_q
 from ..model._linkage import Linkage
@@ -31,21 +34,13 @@ def _row_scale(K) -> Array:
 
 def equilibrium_residual(linkage: Linkage, data: LinkageData, q, t=0.0, lam=1.0) -> Array:
     """Unscaled residual ``K q - lam F(q, 0, t)`` (generalised forces)."""
-    qd = jnp.zeros_like(q)
-    kin = kinematics_from_data(data, q, qd, need_jdot=False)
-    return data.K @ q - lam * external_force(linkage, data, t, q, qd, kin)
-
-
-def _to_results(optx_result) -> RESULTS:
-    return RESULTS.where(
-        optx_result == optx.RESULTS.successful,
-        RESULTS.successful,
-        RESULTS.where(
-            optx_result == optx.RESULTS.max_steps_reached,
-            RESULTS.max_steps_reached,
-            RESULTS.nonlinear_divergence,
-        ),
-    )
+    if linkage.custom_wrench is None:
+        F = external_force_recursive(linkage, data, t, q)
+    else:  # the hook may read Jacobians: form them
+        qd = jnp.zeros_like(q)
+        kin = kinematics_from_data(data, q, qd, need_jdot=False)
+        F = external_force(linkage, data, t, q, qd, kin)
+    return data.K @ q - lam * F
 
 
 @eqx.filter_jit
@@ -55,7 +50,9 @@ def solve_statics(
     *,
     t: ArrayLike = 0.0,
     solver: optx.AbstractRootFinder | optx.AbstractLeastSquaresSolver | None = None,
-    load_steps: int = 1,
+    load_steps: int | None = None,
+    max_load_steps: int = 16,
+    load_increment: float = 2.0,
     max_steps: int = 64,
     rtol: float = 1e-10,
     atol: float = 1e-10,
@@ -69,7 +66,13 @@ def solve_statics(
         t: time at which time-dependent loads are evaluated [s].
         solver: an optimistix root finder or least-squares solver; default
             ``optx.Newton(rtol, atol)`` on the Jacobi-scaled residual.
-        load_steps: number of load increments (use 4-10 for very large loads).
+        load_steps: number of equal load increments; ``None`` (default) chooses it
+            from the size of the Jacobi-scaled residual at ``q0`` (about the linear
+            estimate of the largest coordinate change, e.g. a rotation in rad), so
+            that each increment moves the coordinates by about ``load_increment``,
+            capped at ``max_load_steps``.
+        max_load_steps: cap of the automatic schedule (the scan length).
+        load_increment: target coordinate change per automatic increment.
         max_steps: maximum iterations per load step.
         rtol, atol: tolerances of the default solver.
         throw: raise if the solve fails; use ``throw=False`` under ``vmap`` and read
@@ -82,8 +85,10 @@ def solve_statics(
     Raises:
         ValueError: bad ``q0`` shape or ``load_steps`` < 1.
     """
-    if not isinstance(load_steps, int) or load_steps < 1:
-        raise ValueError(f"load_steps = {load_steps!r}: give an integer >= 1.")
+    if load_steps is not None and (not isinstance(load_steps, int) or load_steps < 1):
+        raise ValueError(f"load_steps = {load_steps!r}: give an integer >= 1 or None.")
+    if not isinstance(max_load_steps, int) or max_load_steps < 1:
+        raise ValueError(f"max_load_steps = {max_load_steps!r}: give an integer >= 1.")
     n = linkage.n_dof
     q0 = jnp.zeros(n) if q0 is None else _as_q(linkage, q0, "q0")
     if solver is None:
@@ -100,36 +105,56 @@ def solve_statics(
             fn, solver, q_start, (data_, lam), max_steps=max_steps, throw=False
         )
 
-    num_pre = jnp.array(0)
-    result_pre = RESULTS.successful
-    if load_steps > 1:
-        lams = jnp.arange(1, load_steps) / load_steps
-        data_ng = jax.lax.stop_gradient(data)
+    # All load steps, the last (lambda = 1) included, run in one scan so that the
+    # solver is compiled once. Each root_find carries the implicit adjoint; the
+    # earlier steps only move the starting point, which the implicit-function
+    # gradient of the last step does not depend on.
+    if load_steps is None:
+        r0 = scale * equilibrium_residual(linkage, data, q0, t)
+        r0 = jax.lax.stop_gradient(jnp.where(jnp.isfinite(r0), r0, 0.0))
+        n_inc = jnp.clip(
+            jnp.ceil(jnp.max(jnp.abs(r0), initial=0.0) / load_increment), 1, max_load_steps
+        )
+        k = jnp.arange(1, max_load_steps + 1, dtype=q0.dtype)
+        lams = jnp.minimum(k / n_inc, 1.0)
+    else:
+        lams = jnp.arange(1, load_steps + 1, dtype=q0.dtype) / load_steps
 
-        def body(q, lam):
-            sol = solve(q, lam, data_ng)
-            return sol.value, (sol.stats["num_steps"], sol.result)
+    def body(carry, lam):
+        q, lam_prev, ok, out_of_steps = carry
 
-        q0, (steps, results) = lax.scan(body, jax.lax.stop_gradient(q0), lams)
-        num_pre = jnp.sum(steps)
-        ok_pre = jnp.all(results._value == optx.RESULTS.successful._value)
-        result_pre = RESULTS.where(ok_pre, RESULTS.successful, RESULTS.nonlinear_divergence)
-        q0 = jax.lax.stop_gradient(q0)
-    sol = solve(q0, jnp.asarray(1.0), data)
-    q = sol.value
+        def step(q):
+            sol = solve(q, lam, data)
+            return (
+                sol.value,
+                sol.stats["num_steps"],
+                sol.result == optx.RESULTS.successful,
+                sol.result == optx.RESULTS.max_steps_reached,
+            )
+
+        def skip(q):  # increments past lambda = 1 of the automatic schedule
+            return q, jnp.array(0, dtype=steps_dtype), ok, out_of_steps
+
+        q, n_it, ok, out_of_steps = lax.cond(lam > lam_prev, step, skip, q)
+        return (q, lam, ok, out_of_steps), n_it
+
+    steps_dtype = jnp.asarray(0).dtype
+    init = (q0, jnp.zeros((), q0.dtype), jnp.array(False), jnp.array(False))
+    (q, _, ok, out_of_steps), steps = lax.scan(body, init, lams)
     r = equilibrium_residual(linkage, data, q, t)
     finite = jnp.all(jnp.isfinite(q)) & jnp.all(jnp.isfinite(r))
-    result = RESULTS.where(finite, _to_results(sol.result), RESULTS.nonlinear_divergence)
-    # A failed intermediate load step is reported only if the final solve failed too:
-    # the final solve from any start that converges is a true equilibrium.
-    result = RESULTS.where(result == RESULTS.successful, result, result)
-    del result_pre
+    # Only the final step decides: from whatever start, a converged final solve is a
+    # true equilibrium of the full load.
+    result = RESULTS.where(
+        ok & finite,
+        RESULTS.successful,
+        RESULTS.where(
+            out_of_steps, RESULTS.max_steps_reached, RESULTS.nonlinear_divergence
+        ),
+    )
     res_norm = jnp.max(jnp.abs(r), initial=0.0)
     if throw:
         q = result.error_if(q, result != RESULTS.successful)
     return StaticsSolution(
-        q=q,
-        residual_norm=res_norm,
-        num_steps=num_pre + sol.stats["num_steps"],
-        result=result,
+        q=q, residual_norm=res_norm, num_steps=jnp.sum(steps), result=result
     )
