@@ -1,0 +1,224 @@
+"""Kinematics: joints against hand-composed transforms, Jacobians against autodiff,
+Magnus convergence order, strains and twists, branch independence, jit / vmap.
+"""
+
+import math
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from jax.scipy.linalg import expm
+
+import sorojax as sj
+from sorojax.lie import hat, inverse_se3, vee
+
+
+def _rot(axis, angle):
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    return np.asarray(expm(hat(jnp.concatenate([jnp.asarray(a * angle), jnp.zeros(3)]))))
+
+
+def _rot_z(angle):
+    return _rot((0, 0, 1), angle)
+
+
+AX = tuple(np.array([1.0, 2.0, 3.0]) / math.sqrt(14.0))
+E_ = np.eye(3)
+# Joint bases written out by hand (angular rows first), independent of Joint.basis.
+HAND_BASIS = {
+    "N": np.zeros((6, 0)),
+    "R": np.concatenate([AX, np.zeros(3)])[:, None],
+    "P": np.concatenate([np.zeros(3), AX])[:, None],
+    "H": np.concatenate([AX, 0.05 * np.asarray(AX)])[:, None],
+    "U": np.stack([np.r_[E_[1], 0, 0, 0], np.r_[E_[2], 0, 0, 0]], 1),  # default axis x
+    "C": np.stack([np.r_[AX, 0, 0, 0], np.r_[0, 0, 0, AX]], 1),
+    "A": np.stack([np.r_[E_[2], 0, 0, 0], np.r_[0, 0, 0, E_[0]], np.r_[0, 0, 0, E_[1]]], 1),
+    "S": np.concatenate([np.eye(3), np.zeros((3, 3))]),
+    "F": np.eye(6),
+}
+
+
+def _joint(kind):
+    if kind in ("U", "A", "S", "F", "N"):
+        return sj.Joint(kind)
+    return sj.Joint(kind, axis=AX, pitch=0.05)
+
+
+@pytest.mark.parametrize("kind", list(HAND_BASIS))
+def test_rigid_chain_fk_equals_hand_composed_transforms(kind, key):
+    L1, L2 = 0.3, 0.2
+    link1 = sj.RigidLink(_joint(kind), length=L1)
+    link2 = sj.RigidLink(sj.Joint("R", axis=(0, 0, 1)), length=L2)
+    place = np.stack([np.eye(4), _rot((0, 1, 0), 0.4)])
+    lk = sj.Linkage([link1, link2], placements=jnp.asarray(place))
+    n1 = HAND_BASIS[kind].shape[1]
+    assert lk.n_dof == n1 + 1, f"{kind}: n_dof {lk.n_dof}"
+    q = jax.random.uniform(key, (lk.n_dof,), minval=-1.0, maxval=1.0)
+    tr = lambda x: np.asarray(sj.translation(x))  # noqa: E731
+    g = (
+        place[0] @ np.asarray(expm(hat(jnp.asarray(HAND_BASIS[kind]) @ q[:n1])))
+        @ tr(L1 / 2) @ tr(L1 / 2) @ place[1]
+        @ _rot_z(float(q[n1])) @ tr(L2 / 2) @ tr(L2 / 2)
+    )
+    got = np.asarray(sj.tip_pose(lk, q))
+    # exp of a constant twist is exact in closed form; expm agrees to roundoff.
+    np.testing.assert_allclose(got, g, atol=1e-12, err_msg=f"{kind}: tip pose")
+
+
+# ------------------------------------------------------------------- hybrid tree
+def _hybrid_tree():
+    mat = sj.Material(1e6, rho=1000.0)
+    soft = sj.SoftLink(
+        [
+            sj.Division(0.4, sj.CircularSection((0.02, 0.01)),
+                        sj.LegendreBasis((1, 1, 1, 1, 1, 1), 1)),
+            sj.Division(0.3, sj.EllipticalSection(0.02, 0.01),
+                        sj.LegendreBasis((0, 1, 1, 0, 0, 0), 2)),
+        ],
+        mat, joint=sj.Joint("U"), g_i=sj.translation(0.01), g_f=sj.translation(0, 0.02),
+    )
+    branch = sj.SoftLink(
+        [sj.Division(0.2, sj.RectangularSection(0.02, 0.01),
+                     sj.MonomialBasis((1, 1, 1, 0, 0, 0), 1),
+                     xi_ref=lambda X1: jnp.stack([0.0, 0.0, 2.0 * X1, 1.0, 0.0, 0.0]))],
+        mat, joint=sj.Joint("P", axis=(0, 1, 0)),
+    )
+    return sj.Linkage(
+        [sj.RigidLink(sj.Joint("R", axis=(0, 0, 1)), 0.3), soft,
+         sj.RigidLink(sj.Joint("S"), 0.2), branch],
+        parents=(0, 1, 1, 3),
+        placements=jnp.stack([jnp.eye(4), jnp.eye(4), sj.translation(0, 0.1),
+                              sj.translation(0, 0, 0.05)]),
+    )
+
+
+@pytest.fixture(scope="module")
+def tree():
+    return _hybrid_tree()
+
+
+def test_jacobian_recursion_equals_autodiff_of_poses(tree, key):
+    q = 0.5 * jax.random.normal(key, (tree.n_dof,))
+    g = sj.forward_kinematics(tree, q)
+    J = sj.jacobians(tree, q)
+    dg = jax.jacfwd(lambda q_: sj.forward_kinematics(tree, q_))(q)  # (n, 4, 4, n_dof)
+    # Body Jacobian column k = vee(g^-1 dg/dq_k).
+    J_ad = jax.vmap(lambda gp, dgp: jax.vmap(lambda d: vee(inverse_se3(gp) @ d),
+                                             in_axes=2, out_axes=1)(dgp))(g, dg)
+    err = float(jnp.max(jnp.abs(J - J_ad)))
+    # Both are exact derivatives of the same discrete map: roundoff only.
+    assert err < 1e-10, f"Jacobian recursion vs autodiff of FK: max error {err:.2e}"
+
+
+def test_jacobian_time_derivative_matches_finite_differences(tree, key):
+    k1, k2 = jax.random.split(key)
+    q = 0.5 * jax.random.normal(k1, (tree.n_dof,))
+    qd = jax.random.normal(k2, (tree.n_dof,))
+    Jd = sj.jacobians_time_derivative(tree, q, qd)
+    h = 1e-5
+    fd = (sj.jacobians(tree, q + h * qd) - sj.jacobians(tree, q - h * qd)) / (2 * h)
+    err = float(jnp.max(jnp.abs(Jd - fd)))
+    # Central differences: truncation ~ h^2 * |d3J| ~ 1e-9.
+    assert err < 1e-7, f"Jdot vs central differences: max error {err:.2e}"
+
+
+def test_strains_and_twists(tree, key):
+    k1, k2 = jax.random.split(key)
+    q = 0.3 * jax.random.normal(k1, (tree.n_dof,))
+    qd = jax.random.normal(k2, (tree.n_dof,))
+    kin = sj.kinematics(tree, q, qd)
+    np.testing.assert_allclose(kin.eta, jnp.einsum("pij,j->pi", kin.J, qd), atol=1e-13)
+    np.testing.assert_allclose(sj.screw_velocities(tree, q, qd), kin.eta, atol=1e-13)
+    lay = tree.layout
+    # Branch (link 4): monomial basis 1, X1 per mode over (torsion, bend y, bend z),
+    # angular rows divided by the length 0.2; reference strain (0, 0, 2 X1, 1, 0, 0).
+    sl = tree.dof_slice(4)
+    qb = np.asarray(q[sl])[1:]  # skip the prismatic joint coordinate
+    dl = lay.links[3].divisions[0]
+    for k, X1 in enumerate(dl.X1):
+        expect = np.zeros(6)
+        for m in range(3):
+            expect[m] = (qb[2 * m] + qb[2 * m + 1] * X1) / 0.2
+        expect[2] += 2.0 * X1
+        expect[3] = 1.0
+        np.testing.assert_allclose(kin.xi[dl.first_point + k], expect, atol=1e-12,
+                                   err_msg=f"strain at X1={X1}")
+
+
+def test_branches_do_not_depend_on_each_other(tree, key):
+    q = 0.5 * jax.random.normal(key, (tree.n_dof,))
+    J = np.asarray(sj.jacobians(tree, q))
+    lay = tree.layout
+    soft_pts = lay.point_link == 2
+    branch_pts = np.isin(lay.point_link, [3, 4])
+    # Link 2 and links 3-4 hang from the tip of link 1 on separate branches.
+    assert np.all(J[soft_pts][:, :, tree.dof_slice(3)] == 0)
+    assert np.all(J[soft_pts][:, :, tree.dof_slice(4)] == 0)
+    assert np.all(J[branch_pts][:, :, tree.dof_slice(2)] == 0)
+    q2 = q.at[tree.dof_slice(4)].add(0.3)
+    g1, g2 = sj.forward_kinematics(tree, q), sj.forward_kinematics(tree, q2)
+    np.testing.assert_array_equal(g1[soft_pts], g2[soft_pts])
+
+
+def test_jit_equals_eager_and_vmap_equals_loop(tree, key):
+    q = 0.5 * jax.random.normal(key, (tree.n_dof,))
+    with jax.disable_jit():
+        g_eager = sj.forward_kinematics(tree, q)
+        J_eager = sj.jacobians(tree, q)
+    np.testing.assert_allclose(sj.forward_kinematics(tree, q), g_eager, atol=1e-13)
+    np.testing.assert_allclose(sj.jacobians(tree, q), J_eager, atol=1e-13)
+    qs = 0.5 * jax.random.normal(key, (64, tree.n_dof))
+    batched = jax.vmap(lambda q_: sj.forward_kinematics(tree, q_))(qs)
+    looped = jnp.stack([sj.forward_kinematics(tree, q_) for q_ in qs])
+    np.testing.assert_allclose(batched, looped, atol=1e-13)
+
+
+def test_same_structure_compiles_once(tree, key):
+    other = eqx.tree_at(lambda lk: lk.links[1].material.E, tree, jnp.asarray(3e6, dtype=float))
+    q = jnp.zeros(tree.n_dof)
+
+    @eqx.filter_jit
+    @eqx.debug.assert_max_traces(max_traces=1)
+    def f(lk, q_):
+        return sj.jacobians(lk, q_)
+
+    f(tree, q)
+    f(other, q)  # new parameter values, same structure: no retrace
+
+
+# ----------------------------------------------------------- Magnus convergence
+def test_magnus_is_fourth_order():
+    # Curvature varying as a quadratic in X plus twist: not integrable in closed form.
+    def rod(n_gauss):
+        div = sj.Division(1.0, sj.CircularSection(0.01), sj.LegendreBasis((1, 1, 1, 0, 0, 0), 2),
+                          n_gauss=n_gauss)
+        return sj.Linkage([sj.SoftLink([div], sj.Material(1e6))])
+
+    q = jnp.array([1.0, 0.5, -0.3, 2.0, -1.0, 0.8, 1.5, 0.7, -0.6])
+    ref = np.asarray(sj.tip_pose(rod(64), q))
+    ns = (4, 8, 16)
+    errs = [np.abs(np.asarray(sj.tip_pose(rod(n), q)) - ref).max() for n in ns]
+    slope = np.polyfit(np.log(ns), np.log(errs), 1)[0]
+    # 4th-order Magnus / Zanna collocation: error ~ n^-4 (fit over 4..16 points).
+    assert -5.0 < slope < -3.5, f"convergence slope {slope:.2f}, errors {errs}"
+
+
+def test_constant_curvature_is_exact():
+    L, kappa, tau = 0.7, 2.0, 1.3
+    div = sj.Division(L, sj.CircularSection(0.01), sj.LegendreBasis((1, 1, 0, 0, 0, 0), 0),
+                      n_gauss=3)
+    lk = sj.Linkage([sj.SoftLink([div], sj.Material(1e6))])
+    q = jnp.array([tau * L, kappa * L])  # q = strain * L (dimensionless)
+    xi = jnp.array([tau, kappa, 0.0, 1.0, 0.0, 0.0])
+    expected = np.asarray(expm(hat(xi * L)))
+    # Constant strain: Magnus is exact; only roundoff remains.
+    np.testing.assert_allclose(sj.tip_pose(lk, q), expected, atol=1e-13)
+
+
+def test_tip_pose_is_the_tip_point(tree, key):
+    q = 0.5 * jax.random.normal(key, (tree.n_dof,))
+    g = sj.forward_kinematics(tree, q)
+    for link in range(1, tree.n_links + 1):
+        np.testing.assert_array_equal(sj.tip_pose(tree, q, link), g[tree.tip_point(link)])
