@@ -4,36 +4,81 @@ Conventions: SI units; 6-vectors angular first ``(wx, wy, wz, vx, vy, vz)``; wre
 ``(moment, force)``; rod axis local x; links numbered from 1 (0 = ground).
 """
 
-from ._results import RESULTS as RESULTS, StaticsSolution as StaticsSolution
+from ._results import RESULTS as RESULTS
+from ._results import StaticsSolution as StaticsSolution
 from .dynamics import (
     damping_matrix as damping_matrix,
+)
+from .dynamics import (
     generalized_external_force as generalized_external_force,
+)
+from .dynamics import (
     stiffness_matrix as stiffness_matrix,
 )
 from .kinematics import (
     Kinematics as Kinematics,
+)
+from .kinematics import (
     forward_kinematics as forward_kinematics,
+)
+from .kinematics import (
     jacobians as jacobians,
+)
+from .kinematics import (
     jacobians_time_derivative as jacobians_time_derivative,
+)
+from .kinematics import (
     kinematics as kinematics,
+)
+from .kinematics import (
     screw_strains as screw_strains,
+)
+from .kinematics import (
     screw_velocities as screw_velocities,
+)
+from .kinematics import (
     tip_pose as tip_pose,
 )
 from .model import (
     CircularSection as CircularSection,
+)
+from .model import (
     CustomBasis as CustomBasis,
+)
+from .model import (
     Division as Division,
+)
+from .model import (
     EllipticalSection as EllipticalSection,
+)
+from .model import (
     Joint as Joint,
+)
+from .model import (
     LegendreBasis as LegendreBasis,
+)
+from .model import (
     Linkage as Linkage,
+)
+from .model import (
     Material as Material,
+)
+from .model import (
     MonomialBasis as MonomialBasis,
+)
+from .model import (
     PointWrench as PointWrench,
+)
+from .model import (
     RectangularSection as RectangularSection,
+)
+from .model import (
     RigidLink as RigidLink,
+)
+from .model import (
     SoftLink as SoftLink,
+)
+from .model import (
     translation as translation,
 )
 from .model._precompute import precompute as precompute

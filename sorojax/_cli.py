@@ -36,7 +36,10 @@ def _demo(args) -> int:
     np.set_printoptions(precision=5, suppress=True)
     ok = bool(sol.result == RESULTS.successful)
     print("  statics: converged" if ok else f"  statics: FAILED ({sol.result})")
-    print(f"  iterations = {int(sol.num_steps)}, residual = {float(sol.residual_norm):.2e}")
+    print(
+        f"  iterations = {int(sol.num_steps)}, "
+        f"residual = {float(sol.residual_norm):.2e}"
+    )
     print(f"  q = {np.asarray(sol.q)}")
     print(f"  tip position [m] = {tip[:3, 3]}")
     print("  tip rotation =\n" + "\n".join("    " + str(r) for r in tip[:3, :3]))
@@ -59,9 +62,13 @@ def _demo(args) -> int:
 
 def main(argv=None) -> int:
     """Entry point of the ``sorojax`` command."""
-    parser = argparse.ArgumentParser(prog="sorojax", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="sorojax", description=__doc__.splitlines()[0]
+    )
     sub = parser.add_subparsers(dest="command", required=True)
-    demo = sub.add_parser("demo", help="solve the statics of the built-in default scene")
+    demo = sub.add_parser(
+        "demo", help="solve the statics of the built-in default scene"
+    )
     demo.add_argument(
         "-o", "--output", default="sorojax-demo.png", help="PNG to write ('' for none)"
     )

@@ -13,7 +13,9 @@ class RESULTS(eqx.Enumeration):
 
     successful = ""
     max_steps_reached = "The solver reached its maximum number of steps."
-    nonlinear_divergence = "The nonlinear solver diverged or produced non-finite values."
+    nonlinear_divergence = (
+        "The nonlinear solver diverged or produced non-finite values."
+    )
     singular = "A linear solve met a singular matrix."
     failed = "The solver failed (see the underlying optimistix/diffrax result)."
 

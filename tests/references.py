@@ -176,8 +176,14 @@ def elastica_cantilever_tip_load_shooting(alpha, rtol=1e-13):
         return [math.cos(z[2]), math.sin(z[2]), z[3], -alpha * math.cos(z[2])]
 
     def integrate(k0):
-        return solve_ivp(rhs, (0.0, 1.0), [0.0, 0.0, 0.0, k0], method="DOP853",
-                         rtol=rtol, atol=rtol * 1e-2).y[:, -1]
+        return solve_ivp(
+            rhs,
+            (0.0, 1.0),
+            [0.0, 0.0, 0.0, k0],
+            method="DOP853",
+            rtol=rtol,
+            atol=rtol * 1e-2,
+        ).y[:, -1]
 
     # First integral: kappa(0)**2 = 2 alpha sin(theta0) <= 2 alpha. The
     # physical (monotone-theta) branch is the largest root below sqrt(2 alpha);
@@ -191,8 +197,14 @@ def elastica_cantilever_tip_load_shooting(alpha, rtol=1e-13):
             k0 = grid[j]
             break
         if np.sign(res[j]) != np.sign(res[j - 1]):
-            k0 = brentq(lambda k: integrate(k)[3], grid[j], grid[j - 1],
-                        xtol=1e-15, rtol=1e-15, maxiter=200)
+            k0 = brentq(
+                lambda k: integrate(k)[3],
+                grid[j],
+                grid[j - 1],
+                xtol=1e-15,
+                rtol=1e-15,
+                maxiter=200,
+            )
             break
     else:  # pragma: no cover
         raise RuntimeError("no shooting bracket found")
@@ -209,8 +221,21 @@ def _cross2(a, b):
     return a[0] * b[1] - a[1] * b[0]
 
 
-def _solve_planar_cosserat(L, E, G, A, I, rho, g_vec, tip_force_fn, tip_moment_fn,
-                           extensible, shearable, n_mesh, rtol=1e-12):
+def _solve_planar_cosserat(
+    L,
+    E,
+    G,
+    A,
+    I,
+    rho,
+    g_vec,
+    tip_force_fn,
+    tip_moment_fn,
+    extensible,
+    shearable,
+    n_mesh,
+    rtol=1e-12,
+):
     """Core solver shared by the planar Cosserat references.
 
     Method:
@@ -269,8 +294,10 @@ def _solve_planar_cosserat(L, E, G, A, I, rho, g_vec, tip_force_fn, tip_moment_f
 
     def make_bc(lam):
         def bc(za, zb):
-            return np.array([za[0], za[2], za[3],
-                             zb[1] - tip_moment_fn(lam, zb[0]) / mscale])
+            return np.array(
+                [za[0], za[2], za[3], zb[1] - tip_moment_fn(lam, zb[0]) / mscale]
+            )
+
         return bc
 
     # --- 1. collocation with load continuation -----------------------------
@@ -281,8 +308,14 @@ def _solve_planar_cosserat(L, E, G, A, I, rho, g_vec, tip_force_fn, tip_moment_f
     lam, dlam = 0.0, 1.0
     while lam < 1.0:
         lam_new = min(1.0, lam + dlam)
-        trial = solve_bvp(make_rhs(lam_new), make_bc(lam_new), guess_x, guess_y,
-                          tol=1e-6, max_nodes=3000)
+        trial = solve_bvp(
+            make_rhs(lam_new),
+            make_bc(lam_new),
+            guess_x,
+            guess_y,
+            tol=1e-6,
+            max_nodes=3000,
+        )
         jump = np.inf
         if trial.success:
             prev_tip = guess_y[0, -1]
@@ -295,8 +328,9 @@ def _solve_planar_cosserat(L, E, G, A, I, rho, g_vec, tip_force_fn, tip_moment_f
         lam, sol = lam_new, trial
         guess_x, guess_y = sol.x, sol.y
         dlam = min(1.0, 2.0 * dlam)
-    sol = solve_bvp(make_rhs(1.0), make_bc(1.0), sol.x, sol.y, tol=1e-9,
-                    max_nodes=500000)
+    sol = solve_bvp(
+        make_rhs(1.0), make_bc(1.0), sol.x, sol.y, tol=1e-9, max_nodes=500000
+    )
     th_colloc = float(sol.sol(1.0)[0])
 
     # --- 2. polish by backward shooting on theta(L) ------------------------
@@ -304,8 +338,15 @@ def _solve_planar_cosserat(L, E, G, A, I, rho, g_vec, tip_force_fn, tip_moment_f
 
     def integrate_back(tht, dense=False):
         z_tip = [tht, tip_moment_fn(1.0, tht) / mscale, 0.0, 0.0]
-        return solve_ivp(rhs, (1.0, 0.0), z_tip, method="DOP853", rtol=rtol,
-                         atol=rtol * 1e-2, dense_output=dense)
+        return solve_ivp(
+            rhs,
+            (1.0, 0.0),
+            z_tip,
+            method="DOP853",
+            rtol=rtol,
+            atol=rtol * 1e-2,
+            dense_output=dense,
+        )
 
     def theta_base(tht):
         return integrate_back(tht).y[0, -1]
@@ -343,8 +384,21 @@ def _solve_planar_cosserat(L, E, G, A, I, rho, g_vec, tip_force_fn, tip_moment_f
     return out
 
 
-def cosserat_planar_static(L, E, G, A, I, rho, g_vec, tip_mass=0.0, tip_force=(0.0, 0.0),
-                           tip_moment=0.0, extensible=True, shearable=True, n_mesh=200):
+def cosserat_planar_static(
+    L,
+    E,
+    G,
+    A,
+    I,
+    rho,
+    g_vec,
+    tip_mass=0.0,
+    tip_force=(0.0, 0.0),
+    tip_moment=0.0,
+    extensible=True,
+    shearable=True,
+    n_mesh=200,
+):
     """Static equilibrium of a planar Cosserat (Reissner) cantilever rod.
 
     Model:
@@ -407,17 +461,37 @@ def cosserat_planar_static(L, E, G, A, I, rho, g_vec, tip_mass=0.0, tip_force=(0
     F = np.asarray(tip_force, dtype=float).reshape(2) + float(tip_mass) * g_vec
     M = float(tip_moment)
     return _solve_planar_cosserat(
-        L, E, G, A, I, rho, g_vec,
+        L,
+        E,
+        G,
+        A,
+        I,
+        rho,
+        g_vec,
         tip_force_fn=lambda lam: lam * F,
         tip_moment_fn=lambda lam, tht: lam * M,
-        extensible=extensible, shearable=shearable, n_mesh=n_mesh)
+        extensible=extensible,
+        shearable=shearable,
+        n_mesh=n_mesh,
+    )
 
 
-def cosserat_planar_static_with_rigid_tip_body(L, E, G, A, I, rho, g_vec, body_mass,
-                                               body_com_offset=(0.0, 0.0),
-                                               tip_force=(0.0, 0.0), tip_moment=0.0,
-                                               extensible=True, shearable=True,
-                                               n_mesh=200):
+def cosserat_planar_static_with_rigid_tip_body(
+    L,
+    E,
+    G,
+    A,
+    I,
+    rho,
+    g_vec,
+    body_mass,
+    body_com_offset=(0.0, 0.0),
+    tip_force=(0.0, 0.0),
+    tip_moment=0.0,
+    extensible=True,
+    shearable=True,
+    n_mesh=200,
+):
     """Planar Cosserat cantilever carrying a rigid body with an offset CM.
 
     Model:
@@ -468,10 +542,19 @@ def cosserat_planar_static_with_rigid_tip_body(L, E, G, A, I, rho, g_vec, body_m
         return lam * (M + _cross2(rot(tht) @ c, W))
 
     out = _solve_planar_cosserat(
-        L, E, G, A, I, rho, g_vec,
+        L,
+        E,
+        G,
+        A,
+        I,
+        rho,
+        g_vec,
         tip_force_fn=lambda lam: lam * F,
         tip_moment_fn=tip_moment_fn,
-        extensible=extensible, shearable=shearable, n_mesh=n_mesh)
+        extensible=extensible,
+        shearable=shearable,
+        n_mesh=n_mesh,
+    )
     xt, yt, tht = out["tip"]
     out["cm"] = np.array([xt, yt]) + rot(tht) @ c
     return out
@@ -545,8 +628,12 @@ def cantilever_beta_L_roots(n=3):
         ``numpy.ndarray`` of ``beta_k L``, ``k = 1..n``.
     """
     f = lambda x: math.cos(x) + 1.0 / math.cosh(x)  # noqa: E731
-    return np.array([brentq(f, (k - 1) * math.pi, k * math.pi, xtol=1e-15, rtol=1e-15)
-                     for k in range(1, int(n) + 1)])
+    return np.array(
+        [
+            brentq(f, (k - 1) * math.pi, k * math.pi, xtol=1e-15, rtol=1e-15)
+            for k in range(1, int(n) + 1)
+        ]
+    )
 
 
 def cantilever_natural_frequencies(E, I, rho, A, L, n=3):

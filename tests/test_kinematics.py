@@ -17,7 +17,9 @@ from sorojax.lie import hat, inverse_se3, vee
 
 def _rot(axis, angle):
     a = np.asarray(axis, float) / np.linalg.norm(axis)
-    return np.asarray(expm(hat(jnp.concatenate([jnp.asarray(a * angle), jnp.zeros(3)]))))
+    return np.asarray(
+        expm(hat(jnp.concatenate([jnp.asarray(a * angle), jnp.zeros(3)])))
+    )
 
 
 def _rot_z(angle):
@@ -34,7 +36,9 @@ HAND_BASIS = {
     "H": np.concatenate([AX, 0.05 * np.asarray(AX)])[:, None],
     "U": np.stack([np.r_[E_[1], 0, 0, 0], np.r_[E_[2], 0, 0, 0]], 1),  # default axis x
     "C": np.stack([np.r_[AX, 0, 0, 0], np.r_[0, 0, 0, AX]], 1),
-    "A": np.stack([np.r_[E_[2], 0, 0, 0], np.r_[0, 0, 0, E_[0]], np.r_[0, 0, 0, E_[1]]], 1),
+    "A": np.stack(
+        [np.r_[E_[2], 0, 0, 0], np.r_[0, 0, 0, E_[0]], np.r_[0, 0, 0, E_[1]]], 1
+    ),
     "S": np.concatenate([np.eye(3), np.zeros((3, 3))]),
     "F": np.eye(6),
 }
@@ -58,9 +62,14 @@ def test_rigid_chain_fk_equals_hand_composed_transforms(kind, key):
     q = jax.random.uniform(key, (lk.n_dof,), minval=-1.0, maxval=1.0)
     tr = lambda x: np.asarray(sj.translation(x))  # noqa: E731
     g = (
-        place[0] @ np.asarray(expm(hat(jnp.asarray(HAND_BASIS[kind]) @ q[:n1])))
-        @ tr(L1 / 2) @ tr(L1 / 2) @ place[1]
-        @ _rot_z(float(q[n1])) @ tr(L2 / 2) @ tr(L2 / 2)
+        place[0]
+        @ np.asarray(expm(hat(jnp.asarray(HAND_BASIS[kind]) @ q[:n1])))
+        @ tr(L1 / 2)
+        @ tr(L1 / 2)
+        @ place[1]
+        @ _rot_z(float(q[n1]))
+        @ tr(L2 / 2)
+        @ tr(L2 / 2)
     )
     got = np.asarray(sj.tip_pose(lk, q))
     # exp of a constant twist is exact in closed form; expm agrees to roundoff.
@@ -72,25 +81,45 @@ def _hybrid_tree():
     mat = sj.Material(1e6, rho=1000.0)
     soft = sj.SoftLink(
         [
-            sj.Division(0.4, sj.CircularSection((0.02, 0.01)),
-                        sj.LegendreBasis((1, 1, 1, 1, 1, 1), 1)),
-            sj.Division(0.3, sj.EllipticalSection(0.02, 0.01),
-                        sj.LegendreBasis((0, 1, 1, 0, 0, 0), 2)),
+            sj.Division(
+                0.4,
+                sj.CircularSection((0.02, 0.01)),
+                sj.LegendreBasis((1, 1, 1, 1, 1, 1), 1),
+            ),
+            sj.Division(
+                0.3,
+                sj.EllipticalSection(0.02, 0.01),
+                sj.LegendreBasis((0, 1, 1, 0, 0, 0), 2),
+            ),
         ],
-        mat, joint=sj.Joint("U"), g_i=sj.translation(0.01), g_f=sj.translation(0, 0.02),
+        mat,
+        joint=sj.Joint("U"),
+        g_i=sj.translation(0.01),
+        g_f=sj.translation(0, 0.02),
     )
     branch = sj.SoftLink(
-        [sj.Division(0.2, sj.RectangularSection(0.02, 0.01),
-                     sj.MonomialBasis((1, 1, 1, 0, 0, 0), 1),
-                     xi_ref=lambda X1: jnp.stack([0.0, 0.0, 2.0 * X1, 1.0, 0.0, 0.0]))],
-        mat, joint=sj.Joint("P", axis=(0, 1, 0)),
+        [
+            sj.Division(
+                0.2,
+                sj.RectangularSection(0.02, 0.01),
+                sj.MonomialBasis((1, 1, 1, 0, 0, 0), 1),
+                xi_ref=lambda X1: jnp.stack([0.0, 0.0, 2.0 * X1, 1.0, 0.0, 0.0]),
+            )
+        ],
+        mat,
+        joint=sj.Joint("P", axis=(0, 1, 0)),
     )
     return sj.Linkage(
-        [sj.RigidLink(sj.Joint("R", axis=(0, 0, 1)), 0.3), soft,
-         sj.RigidLink(sj.Joint("S"), 0.2), branch],
+        [
+            sj.RigidLink(sj.Joint("R", axis=(0, 0, 1)), 0.3),
+            soft,
+            sj.RigidLink(sj.Joint("S"), 0.2),
+            branch,
+        ],
         parents=(0, 1, 1, 3),
-        placements=jnp.stack([jnp.eye(4), jnp.eye(4), sj.translation(0, 0.1),
-                              sj.translation(0, 0, 0.05)]),
+        placements=jnp.stack(
+            [jnp.eye(4), jnp.eye(4), sj.translation(0, 0.1), sj.translation(0, 0, 0.05)]
+        ),
     )
 
 
@@ -105,8 +134,11 @@ def test_jacobian_recursion_equals_autodiff_of_poses(tree, key):
     J = sj.jacobians(tree, q)
     dg = jax.jacfwd(lambda q_: sj.forward_kinematics(tree, q_))(q)  # (n, 4, 4, n_dof)
     # Body Jacobian column k = vee(g^-1 dg/dq_k).
-    J_ad = jax.vmap(lambda gp, dgp: jax.vmap(lambda d: vee(inverse_se3(gp) @ d),
-                                             in_axes=2, out_axes=1)(dgp))(g, dg)
+    J_ad = jax.vmap(
+        lambda gp, dgp: jax.vmap(
+            lambda d: vee(inverse_se3(gp) @ d), in_axes=2, out_axes=1
+        )(dgp)
+    )(g, dg)
     err = float(jnp.max(jnp.abs(J - J_ad)))
     # Both are exact derivatives of the same discrete map: roundoff only.
     assert err < 1e-10, f"Jacobian recursion vs autodiff of FK: max error {err:.2e}"
@@ -143,8 +175,9 @@ def test_strains_and_twists(tree, key):
             expect[m] = (qb[2 * m] + qb[2 * m + 1] * X1) / 0.2
         expect[2] += 2.0 * X1
         expect[3] = 1.0
-        np.testing.assert_allclose(kin.xi[dl.first_point + k], expect, atol=1e-12,
-                                   err_msg=f"strain at X1={X1}")
+        np.testing.assert_allclose(
+            kin.xi[dl.first_point + k], expect, atol=1e-12, err_msg=f"strain at X1={X1}"
+        )
 
 
 def test_branches_do_not_depend_on_each_other(tree, key):
@@ -176,7 +209,9 @@ def test_jit_equals_eager_and_vmap_equals_loop(tree, key):
 
 
 def test_same_structure_compiles_once(tree, key):
-    other = eqx.tree_at(lambda lk: lk.links[1].material.E, tree, jnp.asarray(3e6, dtype=float))
+    other = eqx.tree_at(
+        lambda lk: lk.links[1].material.E, tree, jnp.asarray(3e6, dtype=float)
+    )
     q = jnp.zeros(tree.n_dof)
 
     @eqx.filter_jit
@@ -192,8 +227,12 @@ def test_same_structure_compiles_once(tree, key):
 def test_magnus_is_fourth_order():
     # Curvature varying as a quadratic in X plus twist: not integrable in closed form.
     def rod(n_gauss):
-        div = sj.Division(1.0, sj.CircularSection(0.01), sj.LegendreBasis((1, 1, 1, 0, 0, 0), 2),
-                          n_gauss=n_gauss)
+        div = sj.Division(
+            1.0,
+            sj.CircularSection(0.01),
+            sj.LegendreBasis((1, 1, 1, 0, 0, 0), 2),
+            n_gauss=n_gauss,
+        )
         return sj.Linkage([sj.SoftLink([div], sj.Material(1e6))])
 
     q = jnp.array([1.0, 0.5, -0.3, 2.0, -1.0, 0.8, 1.5, 0.7, -0.6])
@@ -207,8 +246,9 @@ def test_magnus_is_fourth_order():
 
 def test_constant_curvature_is_exact():
     L, kappa, tau = 0.7, 2.0, 1.3
-    div = sj.Division(L, sj.CircularSection(0.01), sj.LegendreBasis((1, 1, 0, 0, 0, 0), 0),
-                      n_gauss=3)
+    div = sj.Division(
+        L, sj.CircularSection(0.01), sj.LegendreBasis((1, 1, 0, 0, 0, 0), 0), n_gauss=3
+    )
     lk = sj.Linkage([sj.SoftLink([div], sj.Material(1e6))])
     q = jnp.array([tau * L, kappa * L])  # q = strain * L (dimensionless)
     xi = jnp.array([tau, kappa, 0.0, 1.0, 0.0, 0.0])
@@ -221,4 +261,6 @@ def test_tip_pose_is_the_tip_point(tree, key):
     q = 0.5 * jax.random.normal(key, (tree.n_dof,))
     g = sj.forward_kinematics(tree, q)
     for link in range(1, tree.n_links + 1):
-        np.testing.assert_array_equal(sj.tip_pose(tree, q, link), g[tree.tip_point(link)])
+        np.testing.assert_array_equal(
+            sj.tip_pose(tree, q, link), g[tree.tip_point(link)]
+        )

@@ -45,6 +45,7 @@ EI = E_ROD * I_ROD
 # 1. Elastica
 # ---------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("alpha", [0.01, 0.5, 1.0, 2.0, 5.0, 10.0, 30.0])
 def test_elastica_elliptic_matches_shooting(alpha):
     # tol 1e-9 (brief requirement); both sides are ~1e-13 accurate (closed form vs DOP853 rtol 1e-13)
@@ -68,8 +69,9 @@ def test_elastica_elliptic_matches_solve_bvp(alpha):
     sol = solve_bvp(fun, bc, s, z0, tol=1e-10, max_nodes=200000)
     assert sol.success
     zt = sol.sol(1.0)
-    np.testing.assert_allclose(elastica_cantilever_tip_load(alpha), (zt[2], zt[3], zt[0]),
-                               rtol=0, atol=1e-9)
+    np.testing.assert_allclose(
+        elastica_cantilever_tip_load(alpha), (zt[2], zt[3], zt[0]), rtol=0, atol=1e-9
+    )
 
 
 # Published values (Mattiasson 1981, Table 1; Bisshopp & Drucker 1945):
@@ -110,8 +112,11 @@ def test_elastica_small_load_limit():
 # 2. Planar Cosserat rod statics
 # ---------------------------------------------------------------------------
 
+
 def _rod(g_vec=(0.0, 0.0), **kw):
-    return cosserat_planar_static(L_ROD, E_ROD, G_ROD, A_ROD, I_ROD, RHO_ROD, g_vec, **kw)
+    return cosserat_planar_static(
+        L_ROD, E_ROD, G_ROD, A_ROD, I_ROD, RHO_ROD, g_vec, **kw
+    )
 
 
 @pytest.mark.parametrize("shearable", [False, True])
@@ -132,7 +137,9 @@ def test_cosserat_tip_load_small_load(shearable):
     P = 1e-4 * 3.0 * EI / L_ROD**2
     out = _rod(tip_force=(0.0, P), extensible=True, shearable=shearable)
     if shearable:
-        w_ref = timoshenko_cantilever_tip_deflection(P, L_ROD, E_ROD, G_ROD, A_ROD, I_ROD)
+        w_ref = timoshenko_cantilever_tip_deflection(
+            P, L_ROD, E_ROD, G_ROD, A_ROD, I_ROD
+        )
     else:
         w_ref = euler_bernoulli_cantilever_tip_deflection(P, L_ROD, E_ROD, I_ROD)
     assert abs(out["tip"][1] / w_ref - 1.0) < 1e-3
@@ -146,7 +153,9 @@ def test_cosserat_pure_moment_is_circle():
     s = out["s"]
     np.testing.assert_allclose(out["theta"], k * s, rtol=0, atol=1e-9)
     np.testing.assert_allclose(out["x"], np.sin(k * s) / k, rtol=0, atol=1e-9 * L_ROD)
-    np.testing.assert_allclose(out["y"], (1.0 - np.cos(k * s)) / k, rtol=0, atol=1e-9 * L_ROD)
+    np.testing.assert_allclose(
+        out["y"], (1.0 - np.cos(k * s)) / k, rtol=0, atol=1e-9 * L_ROD
+    )
 
 
 def test_cosserat_axial_force_elongation():
@@ -166,15 +175,20 @@ def test_cosserat_inextensible_matches_elastica():
     x_ref, y_ref, th_ref = elastica_cantilever_tip_load(alpha)
     np.testing.assert_allclose(
         (out["tip"][0] / L_ROD, out["tip"][1] / L_ROD, out["tip"][2]),
-        (x_ref, y_ref, th_ref), rtol=0, atol=1e-7)
+        (x_ref, y_ref, th_ref),
+        rtol=0,
+        atol=1e-7,
+    )
 
 
 def test_cosserat_heavy_self_weight_global_equilibrium():
     # tol rel 1e-8: base moment from the solver vs quadrature of the external loads on its own shape (n_mesh=2000, Simpson ~1e-12)
     from scipy.integrate import simpson
+
     g_vec = np.array([0.0, -9.81])
-    out = cosserat_planar_static(L_ROD, E_ROD, G_ROD, A_ROD, I_ROD, RHO_ROD, g_vec,
-                                 tip_mass=0.005, n_mesh=2000)
+    out = cosserat_planar_static(
+        L_ROD, E_ROD, G_ROD, A_ROD, I_ROD, RHO_ROD, g_vec, tip_mass=0.005, n_mesh=2000
+    )
     assert out["tip"][1] < -0.5 * L_ROD  # large sag (qL^3/EI ~ 49)
     assert np.all(np.diff(out["theta"]) <= 1e-12)  # primary (non-looping) branch
     f = RHO_ROD * A_ROD * g_vec
@@ -189,9 +203,11 @@ def test_cosserat_heavy_self_weight_global_equilibrium():
 # 3. Rigid tip body
 # ---------------------------------------------------------------------------
 
+
 def _body(mass, c, g_vec=(0.0, -9.81), **kw):
     return cosserat_planar_static_with_rigid_tip_body(
-        L_ROD, E_ROD, G_ROD, A_ROD, I_ROD, RHO_ROD, g_vec, mass, c, **kw)
+        L_ROD, E_ROD, G_ROD, A_ROD, I_ROD, RHO_ROD, g_vec, mass, c, **kw
+    )
 
 
 def test_rigid_body_zero_offset_equals_point_mass():
@@ -210,11 +226,24 @@ def test_rigid_body_offset_small_load_linear_theory():
     W = mass * g
     out = _body(mass, c, g_vec=(0.0, -g), extensible=False, shearable=False)
     out_rho0 = cosserat_planar_static_with_rigid_tip_body(
-        L_ROD, E_ROD, G_ROD, A_ROD, I_ROD, 0.0, (0.0, -g), mass, c,
-        extensible=False, shearable=False)
+        L_ROD,
+        E_ROD,
+        G_ROD,
+        A_ROD,
+        I_ROD,
+        0.0,
+        (0.0, -g),
+        mass,
+        c,
+        extensible=False,
+        shearable=False,
+    )
     q = RHO_ROD * A_ROD * g
-    w_lin = (W * L_ROD**3 / (3 * EI) + c[0] * W * L_ROD**2 / (2 * EI)
-             + q * L_ROD**4 / (8 * EI))
+    w_lin = (
+        W * L_ROD**3 / (3 * EI)
+        + c[0] * W * L_ROD**2 / (2 * EI)
+        + q * L_ROD**4 / (8 * EI)
+    )
     assert abs(-out["tip"][1] / w_lin - 1.0) < 1e-3
     w_lin0 = W * L_ROD**3 / (3 * EI) + c[0] * W * L_ROD**2 / (2 * EI)
     assert abs(-out_rho0["tip"][1] / w_lin0 - 1.0) < 1e-3
@@ -223,18 +252,23 @@ def test_rigid_body_offset_small_load_linear_theory():
 def test_rigid_body_large_deflection_moment_balance_and_cm():
     # tol 1e-12 for the CM kinematics (exact formula); rel 1e-8 for the global moment balance (Simpson on 2000 intervals)
     from scipy.integrate import simpson
+
     c = np.array([0.05, 0.02])
     mass = 0.02
     g_vec = np.array([0.0, -9.81])
     out = _body(mass, c, g_vec=g_vec, n_mesh=2000)
     x_t, y_t, th = out["tip"]
     R = np.array([[math.cos(th), -math.sin(th)], [math.sin(th), math.cos(th)]])
-    np.testing.assert_allclose(out["cm"], np.array([x_t, y_t]) + R @ c, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        out["cm"], np.array([x_t, y_t]) + R @ c, rtol=0, atol=1e-12
+    )
     W = mass * g_vec
     f = RHO_ROD * A_ROD * g_vec
     # tip moment boundary condition m(L) = (R c) x W
     rc = R @ c
-    assert abs(out["m"][-1] - (rc[0] * W[1] - rc[1] * W[0])) < 1e-10 * mass * 9.81 * 0.05
+    assert (
+        abs(out["m"][-1] - (rc[0] * W[1] - rc[1] * W[0])) < 1e-10 * mass * 9.81 * 0.05
+    )
     # base moment = moments of all external loads about the clamp (body weight at its CM)
     moment = out["cm"][0] * W[1] - out["cm"][1] * W[0]
     moment += simpson(out["x"] * f[1] - out["y"] * f[0], x=out["s"])
@@ -244,6 +278,7 @@ def test_rigid_body_large_deflection_moment_balance_and_cm():
 # ---------------------------------------------------------------------------
 # 4./5. Linear formulas, frequencies, pendulum
 # ---------------------------------------------------------------------------
+
 
 def test_linear_tip_deflection_formulas():
     # tol rel 1e-14: closed forms, checked against hand-evaluated numbers
@@ -256,8 +291,12 @@ def test_linear_tip_deflection_formulas():
 
 def test_cantilever_roots_published():
     # tol 1e-9: published roots (Blevins 1979 / brief) are given to 10 decimals
-    np.testing.assert_allclose(cantilever_beta_L_roots(3),
-                               [1.8751040687, 4.6940911330, 7.8547574382], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(
+        cantilever_beta_L_roots(3),
+        [1.8751040687, 4.6940911330, 7.8547574382],
+        rtol=0,
+        atol=1e-9,
+    )
     x = cantilever_beta_L_roots(5)
     # tol 1e-9 relative: roots satisfy 1 + cos x cosh x = 0 (residual scaled by cosh x)
     assert np.all(np.abs(1.0 + np.cos(x) * np.cosh(x)) < 1e-9 * np.cosh(x))
@@ -266,12 +305,33 @@ def test_cantilever_roots_published():
 def _fem_cantilever_frequencies(E, I, rho, A, L, n_el=60, n=3):
     """Hermite-cubic Euler-Bernoulli FEM (consistent mass), clamped at x = 0."""
     h = L / n_el
-    ke = E * I / h**3 * np.array([[12, 6 * h, -12, 6 * h], [6 * h, 4 * h * h, -6 * h, 2 * h * h],
-                                  [-12, -6 * h, 12, -6 * h], [6 * h, 2 * h * h, -6 * h, 4 * h * h]])
-    me = rho * A * h / 420.0 * np.array([[156, 22 * h, 54, -13 * h],
-                                         [22 * h, 4 * h * h, 13 * h, -3 * h * h],
-                                         [54, 13 * h, 156, -22 * h],
-                                         [-13 * h, -3 * h * h, -22 * h, 4 * h * h]])
+    ke = (
+        E
+        * I
+        / h**3
+        * np.array(
+            [
+                [12, 6 * h, -12, 6 * h],
+                [6 * h, 4 * h * h, -6 * h, 2 * h * h],
+                [-12, -6 * h, 12, -6 * h],
+                [6 * h, 2 * h * h, -6 * h, 4 * h * h],
+            ]
+        )
+    )
+    me = (
+        rho
+        * A
+        * h
+        / 420.0
+        * np.array(
+            [
+                [156, 22 * h, 54, -13 * h],
+                [22 * h, 4 * h * h, 13 * h, -3 * h * h],
+                [54, 13 * h, 156, -22 * h],
+                [-13 * h, -3 * h * h, -22 * h, 4 * h * h],
+            ]
+        )
+    )
     ndof = 2 * (n_el + 1)
     K = np.zeros((ndof, ndof))
     M = np.zeros((ndof, ndof))
@@ -291,18 +351,23 @@ def test_cantilever_frequencies_vs_fem():
     np.testing.assert_allclose(om, _fem_cantilever_frequencies(*args), rtol=1e-6)
     # tol rel 1e-14: closed-form scaling omega_1 = 1.8751^2 sqrt(EI/(rho A L^4))
     beta1 = cantilever_beta_L_roots(1)[0]
-    assert om[0] == pytest.approx(beta1**2 * math.sqrt(EI / (RHO_ROD * A_ROD * L_ROD**4)),
-                                  rel=1e-14)
+    assert om[0] == pytest.approx(
+        beta1**2 * math.sqrt(EI / (RHO_ROD * A_ROD * L_ROD**4)), rel=1e-14
+    )
 
 
 def test_pendulum_small_amplitude_and_published():
     # tol rel 1e-7: small-amplitude correction is amp^2/16 = 6e-9 at amp=3e-4
     l, g = 0.7, 9.81
-    assert pendulum_period(l, g, 3e-4) == pytest.approx(2 * math.pi * math.sqrt(l / g), rel=1e-7)
+    assert pendulum_period(l, g, 3e-4) == pytest.approx(
+        2 * math.pi * math.sqrt(l / g), rel=1e-7
+    )
     # tol rel 1e-12 / abs 1e-7: T/T0 at 90 deg = 2 K(1/sqrt 2)/pi with K(1/sqrt 2) = Gamma(1/4)^2/(4 sqrt pi); published 1.1803406
     ratio = pendulum_period(l, g, math.pi / 2) / (2 * math.pi * math.sqrt(l / g))
     gamma_form = math.gamma(0.25) ** 2 / (4.0 * math.sqrt(math.pi)) * 2.0 / math.pi
-    assert ratio == pytest.approx(gamma_form, rel=1e-12)  # K(1/sqrt2) = Gamma(1/4)^2/(4 sqrt(pi)), exact
+    assert ratio == pytest.approx(
+        gamma_form, rel=1e-12
+    )  # K(1/sqrt2) = Gamma(1/4)^2/(4 sqrt(pi)), exact
     assert abs(ratio - 1.1803406) < 1e-7
 
 
@@ -319,10 +384,12 @@ def test_pendulum_vs_numerical_integration(amp):
 
     def ev(t, z):
         return z[0]
+
     ev.terminal = True
     ev.direction = -1
-    sol = solve_ivp(rhs, (0, 100.0), [amp, 0.0], method="DOP853", rtol=1e-12, atol=1e-14,
-                    events=ev)
+    sol = solve_ivp(
+        rhs, (0, 100.0), [amp, 0.0], method="DOP853", rtol=1e-12, atol=1e-14, events=ev
+    )
     T_num = 4.0 * sol.t_events[0][0]
     T_ref = pendulum_period(l, g, amp, inertia_about_pivot=Ip, mass=m)
     assert T_ref == pytest.approx(T_num, rel=1e-9)

@@ -36,9 +36,13 @@ def test_end_moment_gives_exact_circle(follower):
     E, r, L = 1e6, 0.01, 0.5
     EI = E * math.pi * r**4 / 4
     M = 0.8 * EI / L * math.pi  # bends through 0.8 pi
-    rod = sj.SoftLink([sj.Division(L, sj.CircularSection(r), sj.LegendreBasis(PLANAR_Z, 0))],
-                      sj.Material(E))
-    lk = sj.Linkage([rod], point_wrenches=[sj.PointWrench(1, [0, 0, M, 0, 0, 0], follower=follower)])
+    rod = sj.SoftLink(
+        [sj.Division(L, sj.CircularSection(r), sj.LegendreBasis(PLANAR_Z, 0))],
+        sj.Material(E),
+    )
+    lk = sj.Linkage(
+        [rod], point_wrenches=[sj.PointWrench(1, [0, 0, M, 0, 0, 0], follower=follower)]
+    )
     sol = sj.solve_statics(lk)
     k = M / EI
     expected = np.array([math.sin(k * L) / k, (1 - math.cos(k * L)) / k, 0.0])
@@ -55,8 +59,15 @@ I_EL = math.pi * R_EL**4 / 4
 
 def _elastica_linkage(order, alpha, n_gauss=None):
     P = alpha * E_EL * I_EL / L_EL**2
-    return cantilever(L_EL, R_EL, E_EL, modes=PLANAR_Z, order=order, n_gauss=n_gauss,
-                      tip_wrench=jnp.array([0.0, 0, 0, 0, P, 0]))
+    return cantilever(
+        L_EL,
+        R_EL,
+        E_EL,
+        modes=PLANAR_Z,
+        order=order,
+        n_gauss=n_gauss,
+        tip_wrench=jnp.array([0.0, 0, 0, 0, P, 0]),
+    )
 
 
 def _elastica_error(order, alpha, n_gauss=None):
@@ -94,7 +105,11 @@ def test_short_thick_beam_matches_timoshenko():
     A, I = math.pi * r**2, math.pi * r**4 / 4
     P = 1e-5 * E * I / L**2  # small load: linear regime
     rod = sj.SoftLink(
-        [sj.Division(L, sj.CircularSection(r), sj.LegendreBasis((1, 1, 1, 1, 1, 1), 1))],
+        [
+            sj.Division(
+                L, sj.CircularSection(r), sj.LegendreBasis((1, 1, 1, 1, 1, 1), 1)
+            )
+        ],
         sj.Material(E, poisson=nu),
     )
     lk = sj.Linkage([rod], point_wrenches=[sj.PointWrench(1, [0, 0, 0, 0, P, 0])])
@@ -125,7 +140,9 @@ def _sag_reference(**kw):
     p = SAG
     A, I = math.pi * p["r"] ** 2, math.pi * p["r"] ** 4 / 4
     G = p["E"] / (2 * (1 + p["nu"]))
-    return dict(L=p["L"], E=p["E"], G=G, A=A, I=I, rho=p["rho"], g_vec=(0.0, -9.81), **kw)
+    return dict(
+        L=p["L"], E=p["E"], G=G, A=A, I=I, rho=p["rho"], g_vec=(0.0, -9.81), **kw
+    )
 
 
 def test_self_weight_sag_matches_cosserat_bvp():
@@ -149,14 +166,17 @@ def test_rod_with_rigid_tip_body_matches_cosserat_bvp():
     cm = np.asarray(g[lk.layout.links[1].cm_point, :3, 3])[:2]
     rod_tip = np.asarray(g[lk.layout.links[0].tip_point, :3, 3])[:2]
     ref = cosserat_planar_static_with_rigid_tip_body(
-        **_sag_reference(extensible=True, shearable=True), body_mass=m,
+        **_sag_reference(extensible=True, shearable=True),
+        body_mass=m,
         body_com_offset=(c, 0.0),
     )
     exp_tip, exp_cm = np.asarray(ref["tip"][:2]), np.asarray(ref["cm"])
     err_tip = np.linalg.norm(rod_tip - exp_tip) / np.linalg.norm(exp_tip)
     err_cm = np.linalg.norm(cm - exp_cm) / np.linalg.norm(exp_cm)
     # Same discretisation as the self-weight test; 1e-5 relative (issue 2).
-    assert err_tip < 1e-5 and err_cm < 1e-5, f"rod tip err {err_tip:.2e}, CM err {err_cm:.2e}"
+    assert err_tip < 1e-5 and err_cm < 1e-5, (
+        f"rod tip err {err_tip:.2e}, CM err {err_cm:.2e}"
+    )
 
 
 # ------------------------------------------------------------------- joint stiffness
@@ -166,7 +186,9 @@ def test_revolute_joint_settles_at_tau_over_k():
     lk = sj.Linkage([link], point_wrenches=[sj.PointWrench(1, [0, 0, tau, 0, 0, 0])])
     sol = sj.solve_statics(lk)
     # A pure moment about the joint axis: equilibrium k q = tau exactly.
-    assert abs(float(sol.q[0]) - tau / k) < 1e-12, f"q = {sol.q[0]} vs tau/k = {tau / k}"
+    assert abs(float(sol.q[0]) - tau / k) < 1e-12, (
+        f"q = {sol.q[0]} vs tau/k = {tau / k}"
+    )
 
 
 # ---------------------------------------------------------------- branched linkage
@@ -181,22 +203,41 @@ def test_branched_statics_equals_branches_solved_alone():
     base = sj.RigidLink(sj.Joint("N"), length=0.1)
 
     def branch():
-        return sj.SoftLink([sj.Division(0.3, sj.CircularSection(0.01),
-                                        sj.LegendreBasis((0, 1, 1, 0, 0, 0), 2))],
-                           sj.Material(1e7))
+        return sj.SoftLink(
+            [
+                sj.Division(
+                    0.3,
+                    sj.CircularSection(0.01),
+                    sj.LegendreBasis((0, 1, 1, 0, 0, 0), 2),
+                )
+            ],
+            sj.Material(1e7),
+        )
 
     pl = [np.eye(4), _rot_z(0.5), _rot_z(-0.5)]
     grav = (0.0, 0.0, -9.81)
-    full = sj.Linkage([base, branch(), branch()], parents=(0, 1, 1),
-                      placements=jnp.asarray(np.stack(pl)), gravity=grav)
+    full = sj.Linkage(
+        [base, branch(), branch()],
+        parents=(0, 1, 1),
+        placements=jnp.asarray(np.stack(pl)),
+        gravity=grav,
+    )
     sol = sj.solve_statics(full)
     for k, idx in ((1, full.dof_slice(2)), (2, full.dof_slice(3))):
-        alone = sj.Linkage([base, branch()], parents=(0, 1),
-                           placements=jnp.asarray(np.stack([pl[0], pl[k]])), gravity=grav)
+        alone = sj.Linkage(
+            [base, branch()],
+            parents=(0, 1),
+            placements=jnp.asarray(np.stack([pl[0], pl[k]])),
+            gravity=grav,
+        )
         q_alone = sj.solve_statics(alone).q
         # The fixed base couples nothing: each branch's equilibrium is its own (roundoff).
-        np.testing.assert_allclose(sol.q[idx], q_alone, atol=1e-10,
-                                   err_msg=f"branch {k} q differs from solving it alone")
+        np.testing.assert_allclose(
+            sol.q[idx],
+            q_alone,
+            atol=1e-10,
+            err_msg=f"branch {k} q differs from solving it alone",
+        )
 
 
 # ---------------------------------------------------------------- solver reporting
@@ -205,14 +246,20 @@ def test_solver_failure_is_reported_not_nan():
     sol = sj.solve_statics(lk, max_steps=1, throw=False)
     # One iteration cannot converge from the straight rod at P L^2/EI = 10.
     assert sol.result != sj.RESULTS.successful, "a 1-step solve must not report success"
-    with pytest.raises(Exception):
+    with pytest.raises(Exception):  # noqa: B017 -- equinox raises its own runtime error
         sj.solve_statics(lk, max_steps=1, throw=True).q.block_until_ready()
 
 
 # ------------------------------------------------------------- implicit gradients
 def _tip_y_through_statics(E, r, P):
-    lk = cantilever(1.0, r, E, modes=PLANAR_Z, order=4,
-                    tip_wrench=jnp.stack([0.0, 0.0, 0.0, 0.0, P, 0.0]))
+    lk = cantilever(
+        1.0,
+        r,
+        E,
+        modes=PLANAR_Z,
+        order=4,
+        tip_wrench=jnp.stack([0.0, 0.0, 0.0, 0.0, P, 0.0]),
+    )
     q = sj.solve_statics(lk).q
     return sj.tip_pose(lk, q)[1, 3]
 
@@ -225,10 +272,14 @@ def test_statics_gradients_match_central_differences():
         xp, xm = x0.copy(), x0.copy()
         xp[i] += h
         xm[i] -= h
-        fd = (float(_tip_y_through_statics(*xp)) - float(_tip_y_through_statics(*xm))) / (2 * h)
+        fd = (
+            float(_tip_y_through_statics(*xp)) - float(_tip_y_through_statics(*xm))
+        ) / (2 * h)
         # Central differences: truncation ~ (1e-4)^2, solver noise ~1e-14 / 1e-4.
         rel = abs(float(grad[i]) - fd) / abs(fd)
-        assert rel < 1e-6, f"d tip_y / d {name}: autodiff {float(grad[i]):.8e} vs FD {fd:.8e}"
+        assert rel < 1e-6, (
+            f"d tip_y / d {name}: autodiff {float(grad[i]):.8e} vs FD {fd:.8e}"
+        )
 
 
 # ------------------------------------------------------- hooks, f(t) loads, reuse
@@ -262,8 +313,10 @@ def test_time_dependent_point_wrench_is_evaluated_at_t():
 
 
 def test_reused_link_builds_a_chain_of_copies():
-    seg = sj.SoftLink([sj.Division(0.25, sj.CircularSection(0.01),
-                                   sj.LegendreBasis(PLANAR_Z, 0))], sj.Material(1e6))
+    seg = sj.SoftLink(
+        [sj.Division(0.25, sj.CircularSection(0.01), sj.LegendreBasis(PLANAR_Z, 0))],
+        sj.Material(1e6),
+    )
     lk = sj.Linkage([seg, seg, seg, seg])  # the same link object four times, in series
     assert lk.n_dof == 4
     EI = 1e6 * math.pi * 0.01**4 / 4

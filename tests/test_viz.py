@@ -214,8 +214,9 @@ def test_sections_and_taper(sections, tmp_path):
         np.testing.assert_allclose(d.max(), 0.03, atol=1e-9)
         np.testing.assert_allclose(d.min(), 0.01, atol=1e-9)
     # Taper: radius 0.02 -> 0.005 linearly in X1.
-    for ring, c, x in zip(cone.sorojax_rings, cone.sorojax_centres, cone.sorojax_X1,
-                          strict=True):
+    for ring, c, x in zip(
+        cone.sorojax_rings, cone.sorojax_centres, cone.sorojax_X1, strict=True
+    ):
         r = 0.02 + (0.005 - 0.02) * x
         np.testing.assert_allclose(np.linalg.norm(ring - c, axis=1), r, atol=1e-9)
     assert cone.sorojax_X1[0] == 0.0 and cone.sorojax_X1[-1] == 1.0
@@ -245,9 +246,7 @@ def test_plot_reference(sections):
     lk, _ = sections
     fig, ax = plot_reference(lk, n_circle=N_CIRCLE)
     g0 = np.asarray(sorojax.forward_kinematics(lk, np.zeros(lk.n_dof)))
-    assert set(_by_gid(ax, "sorojax-frames")) == {
-        f"sorojax-frames-{a}" for a in "xyz"
-    }
+    assert set(_by_gid(ax, "sorojax-frames")) == {f"sorojax-frames-{a}" for a in "xyz"}
     # Straight rod along x, rigid body beyond it: tip at (1.1, 0, 0).
     np.testing.assert_allclose(g0[lk.tip_point(2), :3, 3], [1.1, 0, 0], atol=1e-12)
     _check_limits_contain(ax, g0[lk.tip_point(2), :3, 3])
@@ -285,6 +284,7 @@ def test_rotation_interpolation_helpers():
         R = _so3_exp(th * axis)
         np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
         np.testing.assert_allclose(_so3_exp(_so3_log(R)), R, atol=1e-7)
+
     # Two poses on a circular arc of radius 1 about z (rod along local x): the
     # interpolated orientations turn uniformly and positions stay near the arc.
     def arc(phi):

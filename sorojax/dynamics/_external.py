@@ -17,14 +17,18 @@ from ..model._precompute import LinkageData
 from ._wrench_recursion import force_from_wrenches, poses_with_records
 
 
-def gravity_wrenches(data: LinkageData, g: Float[Array, "n 4 4"]) -> Float[Array, "n 6"]:
+def gravity_wrenches(
+    data: LinkageData, g: Float[Array, "n 4 4"]
+) -> Float[Array, "n 6"]:
     """Weighted body-frame gravity wrenches ``w_p M_p (0, R_p^T a)``."""
     a_body = jnp.einsum("pji,j->pi", g[:, :3, :3], data.gravity)  # R^T a
     G_body = jnp.concatenate([jnp.zeros_like(a_body), a_body], axis=1)
     return data.point_weight[:, None] * jnp.einsum("pab,pb->pa", data.point_M, G_body)
 
 
-def point_wrenches(linkage: Linkage, t, g: Float[Array, "n 4 4"]) -> Float[Array, "n 6"]:
+def point_wrenches(
+    linkage: Linkage, t, g: Float[Array, "n 4 4"]
+) -> Float[Array, "n 6"]:
     """Body-frame point wrenches of the linkage at time ``t``, one row per point."""
     W = jnp.zeros((g.shape[0], 6), dtype=g.dtype)
     for pw in linkage.point_wrenches:
@@ -60,7 +64,8 @@ def external_force(linkage: Linkage, data: LinkageData, t, q, qd, kin) -> Array:
         linkage: the model (static loads and hook).
         data: its precomputed arrays.
         t: time [s].
-        q, qd: coordinates and velocities.
+        q: coordinates ``(n_dof,)``.
+        qd: velocities ``(n_dof,)``.
         kin: a :class:`sorojax.kinematics.Kinematics` at (q, qd).
 
     Returns:

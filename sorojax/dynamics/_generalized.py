@@ -1,4 +1,4 @@
-"""Public generalised-force queries on a linkage (the manual's GeneralizedExternalForce)."""
+"""Public generalised-force queries (the manual's GeneralizedExternalForce)."""
 
 import equinox as eqx
 import jax.numpy as jnp

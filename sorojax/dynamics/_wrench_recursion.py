@@ -20,9 +20,9 @@ import jax.numpy as jnp
 from jax import lax
 from jaxtyping import Array, Float
 
+from ..kinematics._step import Ad_inv_Rp, exp_and_tangent, pose
 from ..lie import ad
 from ..model._precompute import LinkageData
-from ..kinematics._step import Ad_inv_Rp, exp_and_tangent, pose
 
 _C = math.sqrt(3.0) / 12.0
 
@@ -104,7 +104,9 @@ def force_from_wrenches(
         ld = data.links[i]
         jrec, drecs = records[i]
         s = starts[i]
-        tip_idx = s + 1 + (sum(dd.h.shape[0] + 1 for dd in ld.divisions) if ld.soft else 1)
+        tip_idx = (
+            s + 1 + (sum(dd.h.shape[0] + 1 for dd in ld.divisions) if ld.soft else 1)
+        )
         Lam = W[tip_idx] + child_wrench[i]
         Lam = _Ad_inv_T(ld.g_f) @ Lam  # to the body end (rod end / CM)
         if ld.soft:
@@ -142,8 +144,12 @@ def force_from_wrenches(
             R, p, T = jrec
             y = Ad_inv_Rp(R, p).T @ Lam
             nj = ld.joint_Phi.shape[1]
-            F = F.at[ld.joint_offset : ld.joint_offset + nj].add(ld.joint_Phi.T @ (T.T @ y))
+            F = F.at[ld.joint_offset : ld.joint_offset + nj].add(
+                ld.joint_Phi.T @ (T.T @ y)
+            )
             Lam = y
         if ld.parent:
-            child_wrench[ld.parent - 1] = child_wrench[ld.parent - 1] + _Ad_inv_T(ld.placement) @ Lam
+            child_wrench[ld.parent - 1] = (
+                child_wrench[ld.parent - 1] + _Ad_inv_T(ld.placement) @ Lam
+            )
     return F

@@ -1,9 +1,9 @@
-"""Public kinematics queries (the manual's FwdKinematics, Jacobian, Jacobiandot,
-ScrewStrain, ScrewVelocity) on a :class:`~sorojax.model.Linkage`.
+"""Public kinematics queries on a :class:`~sorojax.model.Linkage`.
 
-Each function precomputes the linkage's derived arrays and runs the recursion of
-:mod:`sorojax.kinematics._recursion`; all are ``eqx.filter_jit``-ed, so repeated calls on
-models of the same structure reuse one compilation, and all vmap over ``q``.
+The manual's FwdKinematics, Jacobian, Jacobiandot, ScrewStrain and ScrewVelocity. Each
+function precomputes the linkage's derived arrays and runs the recursion of
+:mod:`sorojax.kinematics._recursion`; all are ``eqx.filter_jit``-ed, so repeated calls
+on models of the same structure reuse one compilation, and all vmap over ``q``.
 """
 
 import equinox as eqx
@@ -91,7 +91,7 @@ def screw_strains(linkage: Linkage, q: ArrayLike) -> Float[Array, "n_points 6"]:
 def screw_velocities(
     linkage: Linkage, q: ArrayLike, qd: ArrayLike
 ) -> Float[Array, "n_points 6"]:
-    """Body twists ``J qd`` at all significant points (the manual's ``ScrewVelocity``)."""
+    """Body twists ``J qd`` at all points (the manual's ``ScrewVelocity``)."""
     q = _as_q(linkage, q)
     qd = _as_q(linkage, qd, "qd")
     J = poses_and_jacobians(precompute(linkage), q)[1]
@@ -99,7 +99,9 @@ def screw_velocities(
 
 
 @eqx.filter_jit
-def kinematics(linkage: Linkage, q: ArrayLike, qd: ArrayLike | None = None) -> Kinematics:
+def kinematics(
+    linkage: Linkage, q: ArrayLike, qd: ArrayLike | None = None
+) -> Kinematics:
     """All kinematic quantities at once (one recursion; Jdot by forward mode)."""
     q = _as_q(linkage, q)
     qd = jnp.zeros_like(q) if qd is None else _as_q(linkage, qd, "qd")

@@ -35,7 +35,10 @@ _NTERMS = 10
 def _series(first_power: int, sign_offset: int = 0, scale=Fraction(1)) -> tuple:
     """Coefficients c_k of sum_k c_k t^k for sum_k (-1)^k t^k / (first_power + 2k)!."""
     return tuple(
-        float(scale * Fraction((-1) ** (k + sign_offset), math.factorial(first_power + 2 * k)))
+        float(
+            scale
+            * Fraction((-1) ** (k + sign_offset), math.factorial(first_power + 2 * k))
+        )
         for k in range(_NTERMS)
     )
 
@@ -46,7 +49,8 @@ _C = _series(3)  # (t - sin t)/t^3
 _D = _series(4)  # (t^2/2 + cos t - 1)/t^4
 # (2t - 3 sin t + t cos t)/(2 t^5) = sum_j (-1)^j (j + 1) t^2j / (2j + 5)!
 _F = tuple(
-    float(Fraction((-1) ** j * (j + 1), math.factorial(2 * j + 5))) for j in range(_NTERMS)
+    float(Fraction((-1) ** j * (j + 1), math.factorial(2 * j + 5)))
+    for j in range(_NTERMS)
 )
 
 

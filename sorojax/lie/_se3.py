@@ -18,7 +18,7 @@ from ._so3 import dexp_so3_inv, hat3, log_so3, vee3
 from ._utils import so3_coeffs
 
 
-def make_se3(R: Float[Array, "3 3"], p: Float[Array, "3"]) -> Float[Array, "4 4"]:
+def make_se3(R: Float[Array, "3 3"], p: Float[Array, 3]) -> Float[Array, "4 4"]:
     """Assemble the homogeneous matrix ``[[R, p], [0, 1]]``.
 
     Args:
@@ -34,7 +34,7 @@ def make_se3(R: Float[Array, "3 3"], p: Float[Array, "3"]) -> Float[Array, "4 4"
     return jnp.concatenate([jnp.concatenate([R, p[:, None]], axis=1), bottom], axis=0)
 
 
-def hat(xi: Float[Array, "6"]) -> Float[Array, "4 4"]:
+def hat(xi: Float[Array, 6]) -> Float[Array, "4 4"]:
     """Map a twist ``(w, v)`` to the se(3) matrix ``[[hat3(w), v], [0, 0]]``.
 
     Args:
@@ -48,7 +48,7 @@ def hat(xi: Float[Array, "6"]) -> Float[Array, "4 4"]:
     return jnp.concatenate([top, jnp.zeros((1, 4), dtype=top.dtype)], axis=0)
 
 
-def vee(X: Float[Array, "4 4"]) -> Float[Array, "6"]:
+def vee(X: Float[Array, "4 4"]) -> Float[Array, 6]:
     """Inverse of :func:`hat`: ``(vee3(X[:3, :3]), X[:3, 3])``.
 
     Args:
@@ -61,7 +61,7 @@ def vee(X: Float[Array, "4 4"]) -> Float[Array, "6"]:
     return jnp.concatenate([vee3(X[:3, :3]), X[:3, 3]])
 
 
-def exp_se3(xi: Float[Array, "6"]) -> Float[Array, "4 4"]:
+def exp_se3(xi: Float[Array, 6]) -> Float[Array, "4 4"]:
     """Exponential map of se(3): ``expm(hat(xi)) = [[exp_so3(w), J(w) v], [0, 1]]``.
 
     ``J`` is the SO(3) tangent map :func:`~sorojax.lie.dexp_so3`.
@@ -83,7 +83,7 @@ def exp_se3(xi: Float[Array, "6"]) -> Float[Array, "4 4"]:
     return make_se3(R, J @ v)
 
 
-def log_se3(g: Float[Array, "4 4"]) -> Float[Array, "6"]:
+def log_se3(g: Float[Array, "4 4"]) -> Float[Array, 6]:
     """Logarithm map of SE(3), inverse of :func:`exp_se3` for rotation angle <= pi.
 
     ``w = log_so3(R)`` and ``v = J(w)^{-1} p``.
@@ -148,7 +148,7 @@ def Ad_inv(g: Float[Array, "4 4"]) -> Float[Array, "6 6"]:
     return jnp.block([[Rt, zero], [-Rt @ hat3(p), Rt]])
 
 
-def ad(xi: Float[Array, "6"]) -> Float[Array, "6 6"]:
+def ad(xi: Float[Array, 6]) -> Float[Array, "6 6"]:
     """Adjoint of a twist (Lie bracket matrix): ``[[hat3(w), 0], [hat3(v), hat3(w)]]``.
 
     Satisfies ``ad(x) @ y == vee(hat(x) @ hat(y) - hat(y) @ hat(x))``.
@@ -164,7 +164,7 @@ def ad(xi: Float[Array, "6"]) -> Float[Array, "6 6"]:
     return jnp.block([[W, jnp.zeros_like(W)], [V, W]])
 
 
-def coad(xi: Float[Array, "6"]) -> Float[Array, "6 6"]:
+def coad(xi: Float[Array, 6]) -> Float[Array, "6 6"]:
     """Co-adjoint of a twist acting on wrenches: ``-ad(xi).T``.
 
     Equals ``[[hat3(w), hat3(v)], [0, hat3(w)]]`` for wrenches ``(moment, force)``.

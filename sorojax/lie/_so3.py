@@ -20,7 +20,7 @@ from ._utils import (
 )
 
 
-def hat3(w: Float[Array, "3"]) -> Float[Array, "3 3"]:
+def hat3(w: Float[Array, 3]) -> Float[Array, "3 3"]:
     """Map a 3-vector to its skew-symmetric matrix, ``hat3(w) @ x = cross(w, x)``.
 
     Args:
@@ -40,7 +40,7 @@ def hat3(w: Float[Array, "3"]) -> Float[Array, "3 3"]:
     )
 
 
-def vee3(W: Float[Array, "3 3"]) -> Float[Array, "3"]:
+def vee3(W: Float[Array, "3 3"]) -> Float[Array, 3]:
     """Inverse of :func:`hat3`: extract ``(W[2,1], W[0,2], W[1,0])``.
 
     Args:
@@ -53,7 +53,7 @@ def vee3(W: Float[Array, "3 3"]) -> Float[Array, "3"]:
     return jnp.stack([W[2, 1], W[0, 2], W[1, 0]])
 
 
-def exp_so3(w: Float[Array, "3"]) -> Float[Array, "3 3"]:
+def exp_so3(w: Float[Array, 3]) -> Float[Array, "3 3"]:
     """Exponential map of so(3) (Rodrigues' formula).
 
     ``R = I + sin(t)/t W + (1 - cos t)/t^2 W^2`` with ``W = hat3(w)``,
@@ -73,7 +73,7 @@ def exp_so3(w: Float[Array, "3"]) -> Float[Array, "3 3"]:
     return eye + A * W + B * (W @ W)
 
 
-def log_so3(R: Float[Array, "3 3"]) -> Float[Array, "3"]:
+def log_so3(R: Float[Array, "3 3"]) -> Float[Array, 3]:
     """Logarithm map of SO(3), returning a rotation vector with angle in [0, pi].
 
     Three branches, combined with the double-where trick:
@@ -136,7 +136,7 @@ def log_so3(R: Float[Array, "3 3"]) -> Float[Array, "3"]:
     return jnp.where(near_pi, w_back, w_front)
 
 
-def dexp_so3(w: Float[Array, "3"]) -> Float[Array, "3 3"]:
+def dexp_so3(w: Float[Array, 3]) -> Float[Array, "3 3"]:
     """Tangent map (left Jacobian) of the SO(3) exponential.
 
     ``J(w) = I + (1 - cos t)/t^2 W + (t - sin t)/t^3 W^2 = sum_k W^k/(k+1)!``,
@@ -156,7 +156,7 @@ def dexp_so3(w: Float[Array, "3"]) -> Float[Array, "3 3"]:
     return eye + B * W + C * (W @ W)
 
 
-def dexp_so3_inv(w: Float[Array, "3"]) -> Float[Array, "3 3"]:
+def dexp_so3_inv(w: Float[Array, 3]) -> Float[Array, "3 3"]:
     """Inverse of :func:`dexp_so3` in closed form (valid for ``|w| < 2 pi``).
 
     ``J(w)^{-1} = I - W/2 + (1 - (t/2) cot(t/2))/t^2 W^2``.

@@ -26,7 +26,7 @@ from ._so3 import dexp_so3_inv
 from ._utils import dexp_se3_coeffs
 
 
-def dexp_se3(xi: Float[Array, "6"]) -> Float[Array, "6 6"]:
+def dexp_se3(xi: Float[Array, 6]) -> Float[Array, "6 6"]:
     """Tangent operator ``T(Omega) = sum_k ad(Omega)^k/(k+1)!`` of SE(3).
 
     Evaluated as ``I + a1 ad + a2 ad^2 + a3 ad^3 + a4 ad^4`` with
@@ -55,7 +55,7 @@ def dexp_se3(xi: Float[Array, "6"]) -> Float[Array, "6 6"]:
     return eye + a1 * A + a2 * A2 + a3 * A3 + a4 * A4
 
 
-def dexp_se3_inv(xi: Float[Array, "6"]) -> Float[Array, "6 6"]:
+def dexp_se3_inv(xi: Float[Array, 6]) -> Float[Array, "6 6"]:
     """Inverse of :func:`dexp_se3` in closed block form (valid for ``|w| < 2 pi``).
 
     ``T = [[J, 0], [Q, J]]`` with ``J = dexp_so3(w)``, hence
@@ -74,9 +74,7 @@ def dexp_se3_inv(xi: Float[Array, "6"]) -> Float[Array, "6 6"]:
     return jnp.block([[Ji, jnp.zeros_like(Ji)], [-Ji @ Q @ Ji, Ji]])
 
 
-def dexp_se3_dot(
-    xi: Float[Array, "6"], xi_dot: Float[Array, "6"]
-) -> Float[Array, "6 6"]:
+def dexp_se3_dot(xi: Float[Array, 6], xi_dot: Float[Array, 6]) -> Float[Array, "6 6"]:
     """Time derivative of ``T(Omega(t))`` given ``Omega' = xi_dot``.
 
     Computed as the forward-mode directional derivative of :func:`dexp_se3`.

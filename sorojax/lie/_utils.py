@@ -181,9 +181,7 @@ DEXP_A3_COEFFS = _coeffs(lambda n: (-1) ** n * Fraction(n + 1) / _f(2 * n + 4))
 DEXP_A4_COEFFS = _coeffs(lambda n: (-1) ** n * Fraction(n + 1) / _f(2 * n + 5))
 
 _SO3_TABLE = _table(SINC_COEFFS, ONE_MINUS_COS_COEFFS, T_MINUS_SIN_COEFFS)
-_DEXP_SE3_TABLE = _table(
-    DEXP_A1_COEFFS, DEXP_A2_COEFFS, DEXP_A3_COEFFS, DEXP_A4_COEFFS
-)
+_DEXP_SE3_TABLE = _table(DEXP_A1_COEFFS, DEXP_A2_COEFFS, DEXP_A3_COEFFS, DEXP_A4_COEFFS)
 
 
 # ---------------------------------------------------------------------------

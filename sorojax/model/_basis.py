@@ -23,8 +23,7 @@ def _normalise(cls_name: str, modes, orders) -> tuple[tuple[int, ...], tuple[int
         modes_t = tuple(int(bool(m)) for m in modes)
     except TypeError:
         raise ValueError(
-            f"{cls_name}.modes = {modes!r}: give six 0/1 flags "
-            f"for {MODE_NAMES}."
+            f"{cls_name}.modes = {modes!r}: give six 0/1 flags for {MODE_NAMES}."
         ) from None
     if len(modes_t) != 6:
         raise ValueError(
@@ -85,7 +84,9 @@ class AbstractPolynomialBasis(AbstractStrainBasis):
     @property
     def max_order(self) -> int:
         """Highest order over active modes (0 if none)."""
-        return max((o for m, o in zip(self.modes, self.orders, strict=True) if m), default=0)
+        return max(
+            (o for m, o in zip(self.modes, self.orders, strict=True) if m), default=0
+        )
 
     def __call__(self, X1):
         """Block-structured ``(6, n_dof)`` basis at ``X1``."""

@@ -29,7 +29,8 @@ def check_shape(field: str, value, shape: tuple[int, ...]) -> None:
     got = np.shape(value)
     if got != shape:
         raise ValueError(
-            f"{field} has shape {got}, expected {shape}: give an array of shape {shape}."
+            f"{field} has shape {got}, expected {shape}: "
+            f"give an array of shape {shape}."
         )
 
 

@@ -130,7 +130,9 @@ class Joint(eqx.Module):
         elif k == "P":
             cols = [tra(a)]
         elif k == "H":
-            return jnp.asarray(rot(a))[:, None] + self.pitch * jnp.asarray(tra(a))[:, None]
+            return (
+                jnp.asarray(rot(a))[:, None] + self.pitch * jnp.asarray(tra(a))[:, None]
+            )
         elif k == "U":
             u, v = perpendicular_pair(a)
             cols = [rot(u), rot(v)]

@@ -60,7 +60,7 @@ class Layout:
         point_link: (n_points,) 1-based link number of each significant point.
         point_kind: (n_points,) JOINT, CM, ROD or TIP.
         point_division: (n_points,) 1-based division (0 if not a rod point).
-        point_X1: (n_points,) normalised position in its division (0 if not a rod point).
+        point_X1: (n_points,) normalised position in its division (0 off rods).
     """
 
     n_dof: int
@@ -76,7 +76,9 @@ class Layout:
         return len(self.point_kind)
 
 
-def division_points(n_gauss: int, extra: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
+def division_points(
+    n_gauss: int, extra: tuple[float, ...]
+) -> tuple[np.ndarray, np.ndarray]:
     """Union of 0, the Gauss points, the extra load points and 1, with weights."""
     xg, wg = gauss_legendre01(n_gauss)
     X = np.concatenate([[0.0], xg, [1.0], np.asarray(extra, dtype=float)])
@@ -136,7 +138,13 @@ def _build_layout(signature) -> Layout:
         tip_point = add(i, TIP)
         links.append(
             LinkLayout(
-                soft, parent, joint_offset, jn, joint_point, cm_point, tuple(dls),
+                soft,
+                parent,
+                joint_offset,
+                jn,
+                joint_point,
+                cm_point,
+                tuple(dls),
                 tip_point,
             )
         )

@@ -37,7 +37,9 @@ def _pose(field, g):
 def translation(x: float = 0.0, y: float = 0.0, z: float = 0.0) -> Array:
     """Pure translation as a 4x4 pose."""
     g = jnp.eye(4)
-    return g.at[:3, 3].set(jnp.stack(jnp.broadcast_arrays(*map(jnp.asarray, (x, y, z)))))
+    return g.at[:3, 3].set(
+        jnp.stack(jnp.broadcast_arrays(*map(jnp.asarray, (x, y, z))))
+    )
 
 
 class Division(eqx.Module):
@@ -162,7 +164,8 @@ class SoftLink(AbstractLink):
         divisions = tuple(divisions)
         if len(divisions) == 0 or not all(isinstance(d, Division) for d in divisions):
             raise ValueError(
-                f"SoftLink.divisions = {divisions!r}: give one or more Division objects."
+                f"SoftLink.divisions = {divisions!r}: give one or more Division "
+                "objects."
             )
         if not isinstance(material, Material):
             raise ValueError(f"SoftLink.material = {material!r}: give a Material.")

@@ -74,8 +74,8 @@ class Linkage(eqx.Module):
         for i, p in enumerate(parents, start=1):
             if not 0 <= p <= n:
                 raise ValueError(
-                    f"Linkage.parents[{i - 1}] = {p} is out of range: link {i}'s parent "
-                    f"must be 0 (ground) or a link number in 1..{n}."
+                    f"Linkage.parents[{i - 1}] = {p} is out of range: link {i}'s "
+                    f"parent must be 0 (ground) or a link number in 1..{n}."
                 )
             if p >= i:
                 raise ValueError(
@@ -117,7 +117,9 @@ class Linkage(eqx.Module):
             if pw.division is not None:
                 extra.setdefault((pw.link, pw.division), []).append(pw.X1)
         sig = []
-        for i, (link, parent) in enumerate(zip(self.links, self.parents, strict=True), 1):
+        for i, (link, parent) in enumerate(
+            zip(self.links, self.parents, strict=True), 1
+        ):
             if isinstance(link, SoftLink):
                 divs = tuple(
                     (d.n_dof, d.n_gauss, tuple(sorted(extra.get((i, k), []))))
@@ -181,8 +183,8 @@ def _check_point_wrench(k: int, pw, links) -> None:
     link = links[pw.link - 1]
     if isinstance(link, RigidLink) and pw.division is not None:
         raise ValueError(
-            f"{field}.division = {pw.division}: link {pw.link} is rigid; leave division "
-            "None (the wrench acts at the CM, or the tip with at_tip=True)."
+            f"{field}.division = {pw.division}: link {pw.link} is rigid; leave "
+            "division None (the wrench acts at the CM, or the tip with at_tip=True)."
         )
     if isinstance(link, SoftLink) and pw.division is not None:
         nd = len(link.divisions)

@@ -131,7 +131,9 @@ def precompute(linkage: Linkage) -> LinkageData:
                 Phi_z = Phi_z.reshape(nz, 2, 6, dl.n_dof)
                 xr, xr_z = xr_all[: len(X1)], xr_all[len(X1) :].reshape(nz, 2, 6)
                 Sigma, Ms, Ups = jax.vmap(
-                    lambda x: section_matrices(div.section, x, mat.E, G, mat.rho, mat.eta)
+                    lambda x, sec=div.section, m=mat, G=G: section_matrices(
+                        sec, x, m.E, G, m.rho, m.eta
+                    )
                 )(jnp.asarray(X1))
                 wL = jnp.asarray(dl.w) * L
                 o, nd = dl.offset, dl.n_dof

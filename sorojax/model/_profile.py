@@ -1,4 +1,4 @@
-"""Profiles: a section dimension as a function of the normalised coordinate X1 in [0, 1].
+"""Profiles: a section dimension as a function of the normalised X1 in [0, 1].
 
 A dimension may be a constant, a linear taper, or any pure JAX function of X1. The
 first two keep their values as arrays, so ``jax.grad`` reaches them.

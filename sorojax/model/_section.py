@@ -1,4 +1,4 @@
-"""Cross-sections of soft (and rigid prismatic) links: circular, rectangular, elliptical.
+"""Cross-sections of soft and rigid prismatic links: circle, rectangle, ellipse.
 
 Dimensions are profiles of X1 (tapering). Conventions (DESIGN.md section 1): the rod
 axis is local x; ``Iy`` is the second moment for bending about y, ``Iz`` about z, and

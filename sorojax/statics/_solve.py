@@ -32,7 +32,9 @@ def _row_scale(K) -> Array:
     return 1.0 / jnp.where(d > 0, d, fallback)
 
 
-def equilibrium_residual(linkage: Linkage, data: LinkageData, q, t=0.0, lam=1.0) -> Array:
+def equilibrium_residual(
+    linkage: Linkage, data: LinkageData, q, t=0.0, lam=1.0
+) -> Array:
     """Unscaled residual ``K q - lam F(q, 0, t)`` (generalised forces)."""
     if linkage.custom_wrench is None:
         F = external_force_recursive(linkage, data, t, q)
@@ -74,7 +76,9 @@ def solve_statics(
         max_load_steps: cap of the automatic schedule (the scan length).
         load_increment: target coordinate change per automatic increment.
         max_steps: maximum iterations per load step.
-        rtol, atol: tolerances of the default solver.
+        rtol: relative tolerance of the default solver.
+        atol: absolute tolerance of the default solver on the Jacobi-scaled residual
+            (a coordinate tolerance: rad for rotations, m for joint translations).
         throw: raise if the solve fails; use ``throw=False`` under ``vmap`` and read
             ``result``.
 
@@ -113,7 +117,9 @@ def solve_statics(
         r0 = scale * equilibrium_residual(linkage, data, q0, t)
         r0 = jax.lax.stop_gradient(jnp.where(jnp.isfinite(r0), r0, 0.0))
         n_inc = jnp.clip(
-            jnp.ceil(jnp.max(jnp.abs(r0), initial=0.0) / load_increment), 1, max_load_steps
+            jnp.ceil(jnp.max(jnp.abs(r0), initial=0.0) / load_increment),
+            1,
+            max_load_steps,
         )
         k = jnp.arange(1, max_load_steps + 1, dtype=q0.dtype)
         lams = jnp.minimum(k / n_inc, 1.0)

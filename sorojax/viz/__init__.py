@@ -6,7 +6,13 @@
 
 from ._plot import (
     plot_configuration as plot_configuration,
+)
+from ._plot import (
     plot_reference as plot_reference,
+)
+from ._plot import (
     plotq as plotq,
+)
+from ._plot import (
     plotq0 as plotq0,
 )

@@ -259,7 +259,9 @@ def plot_configuration(
         c = link.color if color is None else color
         if isinstance(link, SoftLink):
             nd = len(lay.divisions)
-            for k, (div, dl) in enumerate(zip(link.divisions, lay.divisions), 1):
+            for k, (div, dl) in enumerate(
+                zip(link.divisions, lay.divisions, strict=True), 1
+            ):
                 idx = dl.first_point + np.arange(len(dl.X1))
                 gd, X1 = _densify(g[idx], np.asarray(dl.X1, dtype=float), n_sub)
                 rings = np.stack(
@@ -270,26 +272,41 @@ def plot_configuration(
                 )
                 polys = _tube_polygons(rings, cap_start=k == 1, cap_end=k == nd)
                 _add_body(
-                    ax, art3d, polys, rings, gd[:, :3, 3].copy(), X1, c,
-                    f"sorojax-link{i}-division{k}", "none",
+                    ax,
+                    art3d,
+                    polys,
+                    rings,
+                    gd[:, :3, 3].copy(),
+                    X1,
+                    c,
+                    f"sorojax-link{i}-division{k}",
+                    "none",
                 )
                 pts.append(rings.reshape(-1, 3))
         elif isinstance(link, RigidLink):
             gc = g[lay.cm_point]
             half = 0.5 * _scalar(link.length)
             ends = []
-            for x_local, X1 in ((-half, 0.0), (half, 1.0)):
+            for x_local, _X1 in ((-half, 0.0), (half, 1.0)):
                 ge = gc.copy()
                 ge[:3, 3] = gc[:3, 3] + x_local * gc[:3, 0]
                 ends.append(ge)
             rings = np.stack(
-                [_ring(ge, _outline(link.section, X1, n_circle))
-                 for ge, X1 in zip(ends, (0.0, 1.0), strict=True)]
+                [
+                    _ring(ge, _outline(link.section, X1, n_circle))
+                    for ge, X1 in zip(ends, (0.0, 1.0), strict=True)
+                ]
             )
             polys = _tube_polygons(rings, cap_start=True, cap_end=True)
             _add_body(
-                ax, art3d, polys, rings, np.stack([e[:3, 3] for e in ends]),
-                np.array([0.0, 1.0]), c, f"sorojax-link{i}-body",
+                ax,
+                art3d,
+                polys,
+                rings,
+                np.stack([e[:3, 3] for e in ends]),
+                np.array([0.0, 1.0]),
+                c,
+                f"sorojax-link{i}-body",
                 "k" if rings.shape[1] == 4 else "none",
             )
             pts.append(rings.reshape(-1, 3))
@@ -308,8 +325,15 @@ def plot_configuration(
         for a, (name, fc) in enumerate(zip("xyz", _FRAME_COLORS, strict=True)):
             d = scale * g[sel, :3, a]
             qv = ax.quiver(
-                origin[:, 0], origin[:, 1], origin[:, 2], d[:, 0], d[:, 1], d[:, 2],
-                color=fc, arrow_length_ratio=0.2, linewidths=1.2,
+                origin[:, 0],
+                origin[:, 1],
+                origin[:, 2],
+                d[:, 0],
+                d[:, 1],
+                d[:, 2],
+                color=fc,
+                arrow_length_ratio=0.2,
+                linewidths=1.2,
             )
             qv.set_gid(f"sorojax-frames-{name}")
             qv.sorojax_origins = origin
