@@ -20,6 +20,7 @@ import jax.numpy as jnp
 from jax import lax
 from jaxtyping import Array, Float
 
+from ..kinematics._recursion import magnus_omega
 from ..kinematics._step import Ad_inv_Rp, exp_and_tangent, pose
 from ..lie import ad
 from ..model._precompute import LinkageData
@@ -33,9 +34,7 @@ def _division_forward(g0, dd, q):
 
     def step(g, x):
         h, P, r = x
-        xi1 = P[0] @ q_d + r[0]
-        xi2 = P[1] @ q_d + r[1]
-        Omega = 0.5 * h * (xi1 + xi2) + _C * h * h * (ad(xi1) @ xi2)
+        Omega, xi1, xi2 = magnus_omega(h, P, r, q_d)
         R, p, T = exp_and_tangent(Omega)
         g = g @ pose(R, p)
         return g, (g, (R, p, T, xi1, xi2))

@@ -33,6 +33,24 @@ def _joint_step(g, J, Phi, q_j, offset):
     return g @ pose(R, p), Ad_inv_Rp(R, p) @ J
 
 
+def magnus_omega(h, P, r, q_d):
+    """4th-order Magnus twist of one step, with the strains at its two Zanna points.
+
+    Args:
+        h: step length [m].
+        P: (2, 6, n) basis at the Zanna points.
+        r: (2, 6) reference strain at the Zanna points.
+        q_d: (n,) the division's coordinates.
+
+    Returns:
+        ``(Omega, xi1, xi2)``.
+    """
+    xi1 = P[0] @ q_d + r[0]
+    xi2 = P[1] @ q_d + r[1]
+    Omega = 0.5 * h * (xi1 + xi2) + _C * h * h * (ad(xi1) @ xi2)
+    return Omega, xi1, xi2
+
+
 def _division_scan(g0, J0, dd: DivisionData, q):
     """Poses and Jacobians at every point of one division (first point included)."""
     o, n = dd.offset, dd.n_dof
@@ -41,10 +59,8 @@ def _division_scan(g0, J0, dd: DivisionData, q):
     def step(carry, x):
         g, J = carry
         h, P, r = x
-        xi1 = P[0] @ q_d + r[0]
-        xi2 = P[1] @ q_d + r[1]
+        Omega, xi1, xi2 = magnus_omega(h, P, r, q_d)
         c = _C * h * h
-        Omega = 0.5 * h * (xi1 + xi2) + c * (ad(xi1) @ xi2)
         R, p, T = exp_and_tangent(Omega)
         g = g @ pose(R, p)
         if n:
