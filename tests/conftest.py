@@ -3,7 +3,8 @@
 JAX compiles are the slow part of this suite on small CI machines: tests share model
 *structures* (a jitted sorojax function compiles once per structure, whatever the
 parameter values), and the persistent compilation cache keeps compiled programs
-between runs on the same machine.
+between runs on the same machine. The statics entry point keeps host callbacks
+out of its compiled core so that it can be cached.
 """
 
 import os
@@ -15,9 +16,11 @@ import pytest
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_dtype_promotion", "strict")
 jax.config.update("jax_numpy_rank_promotion", "raise")
+# Per-user cache (shared by clones on one machine); keys hash the compiled program, so
+# stale entries are never used. Override with SOROJAX_TEST_JAX_CACHE.
+_xdg = os.environ.get("XDG_CACHE_HOME", str(pathlib.Path.home() / ".cache"))
 _cache = os.environ.get(
-    "SOROJAX_TEST_JAX_CACHE",
-    str(pathlib.Path(__file__).resolve().parent.parent / ".jax_cache"),
+    "SOROJAX_TEST_JAX_CACHE", str(pathlib.Path(_xdg) / "sorojax" / "jax-tests")
 )
 jax.config.update("jax_compilation_cache_dir", _cache)
 jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)

@@ -46,7 +46,7 @@ def equilibrium_residual(
 
 
 @eqx.filter_jit
-def solve_statics(
+def _solve_statics(
     linkage: Linkage,
     q0: ArrayLike | None = None,
     *,
@@ -58,36 +58,11 @@ def solve_statics(
     max_steps: int = 64,
     rtol: float = 1e-10,
     atol: float = 1e-10,
-    throw: bool = True,
 ) -> StaticsSolution:
-    """Solve the static equilibrium of ``linkage`` (the manual's ``statics``).
+    """Jitted core of :func:`solve_statics`, which never throws.
 
-    Args:
-        linkage: the model.
-        q0: initial guess ``(n_dof,)``; default zeros (the reference configuration).
-        t: time at which time-dependent loads are evaluated [s].
-        solver: an optimistix root finder or least-squares solver; default
-            ``optx.Newton(rtol, atol)`` on the Jacobi-scaled residual.
-        load_steps: number of equal load increments; ``None`` (default) chooses it
-            from the size of the Jacobi-scaled residual at ``q0`` (about the linear
-            estimate of the largest coordinate change, e.g. a rotation in rad), so
-            that each increment moves the coordinates by about ``load_increment``,
-            capped at ``max_load_steps``.
-        max_load_steps: cap of the automatic schedule (the scan length).
-        load_increment: target coordinate change per automatic increment.
-        max_steps: maximum iterations per load step.
-        rtol: relative tolerance of the default solver.
-        atol: absolute tolerance of the default solver on the Jacobi-scaled residual
-            (a coordinate tolerance: rad for rotations, m for joint translations).
-        throw: raise if the solve fails; use ``throw=False`` under ``vmap`` and read
-            ``result``.
-
-    Returns:
-        A :class:`~sorojax.StaticsSolution` with q, the residual max-norm, the total
-        iteration count and a result code.
-
-    Raises:
-        ValueError: bad ``q0`` shape or ``load_steps`` < 1.
+    Without a host callback the compiled program can be kept in JAX's persistent
+    compilation cache.
     """
     if load_steps is not None and (not isinstance(load_steps, int) or load_steps < 1):
         raise ValueError(f"load_steps = {load_steps!r}: give an integer >= 1 or None.")
@@ -159,8 +134,79 @@ def solve_statics(
         ),
     )
     res_norm = jnp.max(jnp.abs(r), initial=0.0)
-    if throw:
-        q = result.error_if(q, result != RESULTS.successful)
     return StaticsSolution(
         q=q, residual_norm=res_norm, num_steps=jnp.sum(steps), result=result
     )
+
+
+def solve_statics(
+    linkage: Linkage,
+    q0: ArrayLike | None = None,
+    *,
+    t: ArrayLike = 0.0,
+    solver: optx.AbstractRootFinder | optx.AbstractLeastSquaresSolver | None = None,
+    load_steps: int | None = None,
+    max_load_steps: int = 16,
+    load_increment: float = 2.0,
+    max_steps: int = 64,
+    rtol: float = 1e-10,
+    atol: float = 1e-10,
+    throw: bool = True,
+) -> StaticsSolution:
+    """Solve the static equilibrium of ``linkage`` (the manual's ``statics``).
+
+    Args:
+        linkage: the model.
+        q0: initial guess ``(n_dof,)``; default zeros (the reference configuration).
+        t: time at which time-dependent loads are evaluated [s].
+        solver: an optimistix root finder or least-squares solver; default
+            ``optx.Newton(rtol, atol)`` on the Jacobi-scaled residual.
+        load_steps: number of equal load increments; ``None`` (default) chooses it
+            from the size of the Jacobi-scaled residual at ``q0`` (about the linear
+            estimate of the largest coordinate change, e.g. a rotation in rad), so
+            that each increment moves the coordinates by about ``load_increment``,
+            capped at ``max_load_steps``.
+        max_load_steps: cap of the automatic schedule (the scan length).
+        load_increment: target coordinate change per automatic increment.
+        max_steps: maximum iterations per load step.
+        rtol: relative tolerance of the default solver.
+        atol: absolute tolerance of the default solver on the Jacobi-scaled residual
+            (a coordinate tolerance: rad for rotations, m for joint translations).
+        throw: raise ``RuntimeError`` if the solve fails (under an outer ``jit`` an
+            equinox runtime error); use ``throw=False`` under ``vmap`` and read
+            ``result``.
+
+    Returns:
+        A :class:`~sorojax.StaticsSolution` with q, the residual max-norm, the total
+        iteration count and a result code.
+
+    Raises:
+        ValueError: bad ``q0`` shape or ``load_steps`` < 1.
+        RuntimeError: the solve failed and ``throw`` is True.
+    """
+    sol = _solve_statics(
+        linkage,
+        q0,
+        t=jnp.asarray(t, dtype=float),
+        solver=solver,
+        load_steps=load_steps,
+        max_load_steps=max_load_steps,
+        load_increment=load_increment,
+        max_steps=max_steps,
+        rtol=rtol,
+        atol=atol,
+    )
+    if not throw:
+        return sol
+    failed = sol.result != RESULTS.successful
+    if isinstance(failed, jax.core.Tracer):  # inside an outer jit / vmap / grad
+        return eqx.tree_at(lambda s: s.q, sol, sol.result.error_if(sol.q, failed))
+    if bool(failed):
+        message = RESULTS._index_to_message[int(sol.result._value)]
+        raise RuntimeError(
+            f"solve_statics did not converge: {message} Residual "
+            f"{float(sol.residual_norm):.3e} after {int(sol.num_steps)} iterations. "
+            "Try more max_steps, more load steps (load_steps=, load_increment=), a "
+            "better q0, or throw=False to inspect the returned solution."
+        )
+    return sol
