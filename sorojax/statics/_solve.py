@@ -8,7 +8,8 @@ size of the scaled residual at the start (automatic load stepping), so the strai
 does not jump to a far (e.g. looped) equilibrium branch.
 Gradients flow through the final solve by the implicit function theorem
 (``optx.ImplicitAdjoint``); the earlier load steps only provide its starting point.
-All steps run in one ``lax.scan``, so the solver is compiled once.
+The intermediate increments run in a ``lax.while_loop`` (only as many as needed,
+also under ``vmap``) on stop-gradient data.
 """
 
 import equinox as eqx
@@ -72,6 +73,10 @@ def _solve_statics(
     q0 = jnp.zeros(n) if q0 is None else _as_q(linkage, q0, "q0")
     if solver is None:
         solver = optx.Newton(rtol=rtol, atol=atol)
+        # Intermediate load increments only need a good start for the next one.
+        intermediate = optx.Newton(rtol=1e-4, atol=1e-4)
+    else:
+        intermediate = solver
     data = precompute(linkage)
     scale = _row_scale(data.K)
 
@@ -79,15 +84,12 @@ def _solve_statics(
         data_, lam = args
         return scale * equilibrium_residual(linkage, data_, q, t, lam)
 
-    def solve(q_start, lam, data_):
+    def solve(q_start, lam, data_, solver_=solver):
         return optx.root_find(
-            fn, solver, q_start, (data_, lam), max_steps=max_steps, throw=False
+            fn, solver_, q_start, (data_, lam), max_steps=max_steps, throw=False
         )
 
-    # All load steps, the last (lambda = 1) included, run in one scan so that the
-    # solver is compiled once. Each root_find carries the implicit adjoint; the
-    # earlier steps only move the starting point, which the implicit-function
-    # gradient of the last step does not depend on.
+    # Number of load increments: given, or from the size of the scaled residual.
     if load_steps is None:
         r0 = scale * equilibrium_residual(linkage, data, q0, t)
         r0 = jax.lax.stop_gradient(jnp.where(jnp.isfinite(r0), r0, 0.0))
@@ -96,32 +98,33 @@ def _solve_statics(
             1,
             max_load_steps,
         )
-        k = jnp.arange(1, max_load_steps + 1, dtype=q0.dtype)
-        lams = jnp.minimum(k / n_inc, 1.0)
     else:
-        lams = jnp.arange(1, load_steps + 1, dtype=q0.dtype) / load_steps
+        n_inc = jnp.asarray(load_steps, dtype=q0.dtype)
 
-    def body(carry, lam):
-        q, lam_prev, ok, out_of_steps = carry
+    # Intermediate increments lambda = k / n, k = 1 .. n - 1, in a while loop: it runs
+    # only the increments needed (under vmap, those of the hardest case) and only
+    # moves the starting point of the final solve, so it sees no gradients.
+    data_ng = jax.lax.stop_gradient(data)
 
-        def step(q):
-            sol = solve(q, lam, data)
-            return (
-                sol.value,
-                sol.stats["num_steps"],
-                sol.result == optx.RESULTS.successful,
-                sol.result == optx.RESULTS.max_steps_reached,
-            )
+    def cond(carry):
+        k, _, _ = carry
+        return k < n_inc
 
-        def skip(q):  # increments past lambda = 1 of the automatic schedule
-            return q, jnp.array(0, dtype=steps_dtype), ok, out_of_steps
+    def body(carry):
+        k, q, n_it = carry
+        sol = solve(q, k / n_inc, data_ng, intermediate)
+        return k + 1, sol.value, n_it + sol.stats["num_steps"]
 
-        q, n_it, ok, out_of_steps = lax.cond(lam > lam_prev, step, skip, q)
-        return (q, lam, ok, out_of_steps), n_it
-
-    steps_dtype = jnp.asarray(0).dtype
-    init = (q0, jnp.zeros((), q0.dtype), jnp.array(False), jnp.array(False))
-    (q, _, ok, out_of_steps), steps = lax.scan(body, init, lams)
+    zero_it = jnp.zeros((), dtype=jnp.asarray(0).dtype)
+    _, q_start, pre_steps = lax.while_loop(
+        cond, body, (jnp.ones((), q0.dtype), jax.lax.stop_gradient(q0), zero_it)
+    )
+    # The final solve at the full load carries the implicit adjoint.
+    sol = solve(q_start, jnp.ones((), q0.dtype), data)
+    q = sol.value
+    ok = sol.result == optx.RESULTS.successful
+    out_of_steps = sol.result == optx.RESULTS.max_steps_reached
+    steps = pre_steps + sol.stats["num_steps"]
     r = equilibrium_residual(linkage, data, q, t)
     finite = jnp.all(jnp.isfinite(q)) & jnp.all(jnp.isfinite(r))
     # Only the final step decides: from whatever start, a converged final solve is a
@@ -134,9 +137,7 @@ def _solve_statics(
         ),
     )
     res_norm = jnp.max(jnp.abs(r), initial=0.0)
-    return StaticsSolution(
-        q=q, residual_norm=res_norm, num_steps=jnp.sum(steps), result=result
-    )
+    return StaticsSolution(q=q, residual_norm=res_norm, num_steps=steps, result=result)
 
 
 def solve_statics(
@@ -166,7 +167,7 @@ def solve_statics(
             estimate of the largest coordinate change, e.g. a rotation in rad), so
             that each increment moves the coordinates by about ``load_increment``,
             capped at ``max_load_steps``.
-        max_load_steps: cap of the automatic schedule (the scan length).
+        max_load_steps: cap of the automatic schedule.
         load_increment: target coordinate change per automatic increment.
         max_steps: maximum iterations per load step.
         rtol: relative tolerance of the default solver.
