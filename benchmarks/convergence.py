@@ -38,7 +38,6 @@ import jax
 jax.config.update("jax_enable_x64", True)
 
 import jax.numpy as jnp  # noqa: E402
-import numpy as np  # noqa: E402
 
 import sorojax  # noqa: E402
 from sorojax.scenes import cantilever  # noqa: E402
@@ -69,14 +68,26 @@ def make_solver(order, load_steps, n_gauss=None):
     def solve(alpha, q0):
         P = alpha * E * I / L**2
         rod = cantilever(
-            L, R, E, modes=MODES, order=order, n_gauss=n_gauss,
+            L,
+            R,
+            E,
+            modes=MODES,
+            order=order,
+            n_gauss=n_gauss,
             tip_wrench=jnp.array([0.0, 0.0, 0.0, 0.0, 1.0, 0.0]) * P,
         )
         sol = sorojax.solve_statics(rod, q0, load_steps=load_steps or 1, throw=False)
         g = sorojax.tip_pose(rod, sol.q)
         rot = jnp.arctan2(g[1, 0], g[0, 0])
-        return (g[0, 3], g[1, 3], rot, sol.residual_norm, sol.num_steps,
-                sol.result._value, sol.q)
+        return (
+            g[0, 3],
+            g[1, 3],
+            rot,
+            sol.residual_norm,
+            sol.num_steps,
+            sol.result._value,
+            sol.q,
+        )
 
     return jax.jit(solve)
 
@@ -99,10 +110,20 @@ def git_state():
 
     root = Path(__file__).resolve().parent.parent
     try:
-        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True,
-                              text=True, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "sorojax"], cwd=root,
-                               capture_output=True, text=True, check=True).stdout.rstrip()
+        head = subprocess.run(
+            ["git", "rev-parse", "HEAD"],
+            cwd=root,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "sorojax"],
+            cwd=root,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.rstrip()
         return {"head": head, "sorojax_uncommitted_changes": dirty.splitlines()}
     except (OSError, subprocess.CalledProcessError):
         return None
@@ -121,18 +142,29 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="even orders only, 3 repeats")
     ap.add_argument("--orders", type=int, nargs="*", default=None)
-    ap.add_argument("--n-gauss", type=int, default=None,
-                    help="Gauss points per division (default: the library's)")
-    ap.add_argument("--native-load-steps", action="store_true",
-                    help="use solve_statics(load_steps=4) for alpha >= 5 (one more "
-                         "compile per order) instead of the equivalent continuation")
+    ap.add_argument(
+        "--n-gauss",
+        type=int,
+        default=None,
+        help="Gauss points per division (default: the library's)",
+    )
+    ap.add_argument(
+        "--native-load-steps",
+        action="store_true",
+        help="use solve_statics(load_steps=4) for alpha >= 5 (one more "
+        "compile per order) instead of the equivalent continuation",
+    )
     args = ap.parse_args(argv)
-    orders = args.orders or (list(range(2, 11, 2)) if args.quick else list(range(2, 11)))
+    orders = args.orders or (
+        list(range(2, 11, 2)) if args.quick else list(range(2, 11))
+    )
     repeats = 3 if args.quick else 7
 
     refs = {a: elastica_cantilever_tip_load(a) for a in ALPHAS}
-    print(f"jax {jax.__version__} on {jax.devices()}, {os.cpu_count()} CPUs,"
-          f" load average {os.getloadavg()[0]:.1f}")
+    print(
+        f"jax {jax.__version__} on {jax.devices()}, {os.cpu_count()} CPUs,"
+        f" load average {os.getloadavg()[0]:.1f}"
+    )
     print("Reference (Bisshopp-Drucker) x_tip/L, y_tip/L, tip rotation:")
     for a, (x, y, th) in refs.items():
         print(f"  alpha = {a:4.1f}: {x:.10f}  {y:.10f}  {th:.10f}")
@@ -152,61 +184,91 @@ def main(argv=None):
                 solvers[key] = (compiled, time.perf_counter() - t0)
             compiled, tc = solvers[key]
             if key is None:
-                def f(alpha, compiled=compiled, ls=ls):
+
+                def f(alpha, compiled=compiled, ls=ls, n_dof=n_dof):
                     return continuation(compiled, alpha, n_dof, ls)
             else:
-                def f(alpha, compiled=compiled):
+
+                def f(alpha, compiled=compiled, q0=q0):
                     return compiled(alpha, q0)
+
             x, y, rot, res, steps, result, _ = jax.block_until_ready(f(a))
             warm = timed(f, a, repeats)
             xr, yr, thr = refs[a]
-            rows.append({
-                "order": order,
-                "n_dof": n_dof,
-                "alpha": a,
-                "load_steps": ls,
-                "x_tip": float(x) / L,
-                "y_tip": float(y) / L,
-                "rotation": float(rot),
-                "rel_err_y": abs(float(y) / L - yr) / abs(yr),
-                "rel_err_x": abs(float(x) / L - xr) / abs(xr),
-                "abs_err_rotation": abs(float(rot) - thr),
-                "newton_iterations": int(steps),
-                "residual_max_norm": float(res),
-                "result_code": int(result),
-                "warm_s": warm,
-                "compile_s": tc,
-            })
-        print(f"  order {order:2d} done ({time.perf_counter() - t_start:5.0f} s)", flush=True)
+            rows.append(
+                {
+                    "order": order,
+                    "n_dof": n_dof,
+                    "alpha": a,
+                    "load_steps": ls,
+                    "x_tip": float(x) / L,
+                    "y_tip": float(y) / L,
+                    "rotation": float(rot),
+                    "rel_err_y": abs(float(y) / L - yr) / abs(yr),
+                    "rel_err_x": abs(float(x) / L - xr) / abs(xr),
+                    "abs_err_rotation": abs(float(rot) - thr),
+                    "newton_iterations": int(steps),
+                    "residual_max_norm": float(res),
+                    "result_code": int(result),
+                    "warm_s": warm,
+                    "compile_s": tc,
+                }
+            )
+        print(
+            f"  order {order:2d} done ({time.perf_counter() - t_start:5.0f} s)",
+            flush=True,
+        )
 
     # Tables.
     def table(title, key, fmt):
         print(f"\n{title}")
         print("  order  n_dof" + "".join(f"   alpha={a:<5g}" for a in ALPHAS))
         for order in orders:
-            cells = [next(r for r in rows if r["order"] == order and r["alpha"] == a)
-                     for a in ALPHAS]
-            print(f"  {order:5d}  {order + 1:5d}" + "".join(f"{fmt(c[key]):>14}" for c in cells))
+            cells = [
+                next(r for r in rows if r["order"] == order and r["alpha"] == a)
+                for a in ALPHAS
+            ]
+            print(
+                f"  {order:5d}  {order + 1:5d}"
+                + "".join(f"{fmt(c[key]):>14}" for c in cells)
+            )
 
-    table("Relative error of the tip deflection |y - y_ref| / y_ref:", "rel_err_y",
-          lambda v: f"{v:.2e}")
-    table("Absolute error of the tip rotation [rad]:", "abs_err_rotation",
-          lambda v: f"{v:.2e}")
-    table("Warm time per solve [ms] (load_steps = 4 for alpha >= 5):", "warm_s",
-          lambda v: f"{1e3 * v:.2f}")
-    table("Newton iterations (all load steps):", "newton_iterations", lambda v: f"{v:d}")
-    print("\nCompile time per order [s] (per load_steps value with --native-load-steps):")
+    table(
+        "Relative error of the tip deflection |y - y_ref| / y_ref:",
+        "rel_err_y",
+        lambda v: f"{v:.2e}",
+    )
+    table(
+        "Absolute error of the tip rotation [rad]:",
+        "abs_err_rotation",
+        lambda v: f"{v:.2e}",
+    )
+    table(
+        "Warm time per solve [ms] (load_steps = 4 for alpha >= 5):",
+        "warm_s",
+        lambda v: f"{1e3 * v:.2f}",
+    )
+    table(
+        "Newton iterations (all load steps):", "newton_iterations", lambda v: f"{v:d}"
+    )
+    print(
+        "\nCompile time per order [s] (per load_steps value with --native-load-steps):"
+    )
     for order in orders:
         cs = {r["load_steps"]: r["compile_s"] for r in rows if r["order"] == order}
         if args.native_load_steps:
-            print(f"  order {order:2d}: "
-                  + ", ".join(f"load_steps={k}: {v:.1f}" for k, v in cs.items()))
+            print(
+                f"  order {order:2d}: "
+                + ", ".join(f"load_steps={k}: {v:.1f}" for k, v in cs.items())
+            )
         else:
             print(f"  order {order:2d}: {next(iter(cs.values())):.1f}")
     bad = [r for r in rows if r["result_code"] != 0]
     if bad:
-        print(f"\nWARNING: {len(bad)} solves did not report success: "
-              + ", ".join(f"(order {r['order']}, alpha {r['alpha']})" for r in bad))
+        print(
+            f"\nWARNING: {len(bad)} solves did not report success: "
+            + ", ".join(f"(order {r['order']}, alpha {r['alpha']})" for r in bad)
+        )
     total = time.perf_counter() - t_start
     print(f"\nTotal {total:.0f} s")
 
@@ -242,7 +304,9 @@ def main(argv=None):
         rs = [r for r in rows if r["alpha"] == a]
         err = [max(r["rel_err_y"], 1e-17) for r in rs]
         ax1.semilogy([r["order"] for r in rs], err, "o-", label=f"$PL^2/EI$ = {a:g}")
-        ax2.loglog([1e3 * r["warm_s"] for r in rs], err, "o-", label=f"$PL^2/EI$ = {a:g}")
+        ax2.loglog(
+            [1e3 * r["warm_s"] for r in rs], err, "o-", label=f"$PL^2/EI$ = {a:g}"
+        )
     ax1.set_xlabel("Legendre basis order (n_dof = order + 1)")
     ax1.set_ylabel("relative error of tip deflection")
     ax1.set_title("Convergence vs elastica (Bisshopp-Drucker)")

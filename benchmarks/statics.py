@@ -61,10 +61,20 @@ def git_state():
 
     root = Path(__file__).resolve().parent.parent
     try:
-        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True,
-                              text=True, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "sorojax"], cwd=root,
-                               capture_output=True, text=True, check=True).stdout.rstrip()
+        head = subprocess.run(
+            ["git", "rev-parse", "HEAD"],
+            cwd=root,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "sorojax"],
+            cwd=root,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.rstrip()
         return {"head": head, "sorojax_uncommitted_changes": dirty.splitlines()}
     except (OSError, subprocess.CalledProcessError):
         return None
@@ -96,7 +106,9 @@ def tip_wrench(alpha):
 
 
 def rod30(alpha):
-    return cantilever(L, R, E, modes=MODES_30, order=ORDER_30, tip_wrench=tip_wrench(alpha))
+    return cantilever(
+        L, R, E, modes=MODES_30, order=ORDER_30, tip_wrench=tip_wrench(alpha)
+    )
 
 
 def solve_one(alpha):
@@ -237,7 +249,9 @@ def ms(s):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="fewer repeats, 256-solve batch")
+    ap.add_argument(
+        "--quick", action="store_true", help="fewer repeats, 256-solve batch"
+    )
     ap.add_argument("--batch", type=int, default=None, help="batch size (default 1024)")
     ap.add_argument(
         "--chunk", type=int, default=64, help="lax.map batch_size variant (0: skip it)"
@@ -257,7 +271,9 @@ def main(argv=None):
     t_start = time.perf_counter()
 
     kin = bench_kinematics(repeats)
-    print(f"\n[1] Kinematics, {kin['n_dof']}-DoF rod (modes {MODES_12}, order {ORDER_12})")
+    print(
+        f"\n[1] Kinematics, {kin['n_dof']}-DoF rod (modes {MODES_12}, order {ORDER_12})"
+    )
     print(f"    {'function':<22}{'compile':>14}{'warm (AOT)':>14}{'warm (call)':>14}")
     for name in ("forward_kinematics", "jacobians"):
         k = kin[name]
@@ -275,7 +291,9 @@ def main(argv=None):
     print(f"    warm (median)      {ms(st['warm_median_s'])}")
     print(f"    warm, public API   {ms(st['public_solve_statics_warm_median_s'])}")
     print(f"    Newton iterations  {st['newton_iterations']}")
-    print(f"    residual (max)     {st['residual_max_norm']:.2e}  result {st['result_code']}")
+    print(
+        f"    residual (max)     {st['residual_max_norm']:.2e}  result {st['result_code']}"
+    )
     print(f"    tip position [m]   {np.round(st['tip_position_m'], 4).tolist()}")
     print(
         f"    SoRoSim 0.5 s / ours = {st['sorosim_ratio']:.0f}x"
@@ -285,7 +303,9 @@ def main(argv=None):
     ba = bench_batch(n_batch, n_loop, repeats, batch_repeats, args.chunk)
     lp = ba["loop"]
     print(f"\n[3] {n_batch} statics solves, P L^2/EI in [0.5, 5]")
-    print(f"    {'method':<26}{'compile':>10}{'total':>12}{'per solve':>13}{'solves/s':>10}{'speedup':>9}")
+    print(
+        f"    {'method':<26}{'compile':>10}{'total':>12}{'per solve':>13}{'solves/s':>10}{'speedup':>9}"
+    )
     print(
         f"    {'one at a time (loop)':<26}{'-':>10}{lp['extrapolated_total_s']:>10.2f} s"
         f"{ms(lp['per_solve_s']):>13}{lp['solves_per_s']:>10.0f}{1.0:>8.2f}x"
