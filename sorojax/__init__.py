@@ -15,6 +15,36 @@ from .dynamics import (
 from .dynamics import (
     stiffness_matrix as stiffness_matrix,
 )
+from .dynamics import (
+    coriolis_force as coriolis_force,
+)
+from .dynamics import (
+    coriolis_matrix as coriolis_matrix,
+)
+from .dynamics import (
+    elastic_energy as elastic_energy,
+)
+from .dynamics import (
+    equations_of_motion as equations_of_motion,
+)
+from .dynamics import (
+    forward_dynamics as forward_dynamics,
+)
+from .dynamics import (
+    gravitational_energy as gravitational_energy,
+)
+from .dynamics import (
+    kinetic_energy as kinetic_energy,
+)
+from .dynamics import (
+    mass_matrix as mass_matrix,
+)
+from .dynamics import (
+    total_energy as total_energy,
+)
+from .integrate import SOLVERS as SOLVERS
+from .integrate import Trajectory as Trajectory
+from .integrate import simulate as simulate
 from .kinematics import (
     Kinematics as Kinematics,
 )
@@ -35,6 +65,9 @@ from .kinematics import (
 )
 from .kinematics import (
     screw_velocities as screw_velocities,
+)
+from .kinematics import (
+    strain_coordinates as strain_coordinates,
 )
 from .kinematics import (
     tip_pose as tip_pose,

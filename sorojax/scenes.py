@@ -86,3 +86,34 @@ def cantilever(
     rod = SoftLink(divs, Material(E=E, poisson=0.5, rho=rho))
     pws = () if tip_wrench is None else (PointWrench(1, tip_wrench),)
     return Linkage([rod], gravity=gravity, point_wrenches=pws)
+
+
+def free_fall_rod(
+    order: int = 3,
+    eta: float = 0.0,
+    modes=(1, 1, 1, 0, 0, 0),
+    n_gauss: int | None = None,
+    E: float = 1e6,
+) -> Linkage:
+    """SoRoSim's dynamics tutorial rod: clamped at its base, falling under gravity.
+
+    L 0.5 m along x, circular radius tapering linearly 2 -> 1 cm, E 1 MPa, poisson
+    0.5, rho 1000 kg/m^3, material damping ``eta`` [Pa s]; torsion and both bendings
+    (``modes``) with Legendre order ``order`` (cubic: 12 DoF); gravity 9.81 m/s^2 along
+    -z. Start it from :func:`free_fall_q0` (pre-bent 1 rad/m about y) at rest.
+    """
+    div = Division(
+        0.5,
+        CircularSection((0.02, 0.01)),
+        LegendreBasis(modes, order),
+        n_gauss=n_gauss,
+    )
+    rod = SoftLink([div], Material(E=E, poisson=0.5, rho=1000.0, eta=eta))
+    return Linkage([rod], gravity=(0.0, 0.0, -9.81))
+
+
+def free_fall_q0(linkage: Linkage):
+    """Initial coordinates of :func:`free_fall_rod`: uniform bending 1 rad/m about y."""
+    from .kinematics import strain_coordinates
+
+    return strain_coordinates(linkage, [0.0, 1.0, 0.0, 0.0, 0.0, 0.0])

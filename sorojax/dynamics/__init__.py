@@ -1,4 +1,4 @@
-"""Generalised terms: stiffness, damping and external forces (M, C: issue 3)."""
+"""Generalised terms: M, C, K, D, external forces, equations of motion, energies."""
 
 from ._elastic import damping_matrix as damping_matrix
 from ._elastic import stiffness_matrix as stiffness_matrix
@@ -18,3 +18,12 @@ from ._external import (
     point_wrenches as point_wrenches,
 )
 from ._generalized import generalized_external_force as generalized_external_force
+from ._energy import elastic_energy as elastic_energy
+from ._energy import gravitational_energy as gravitational_energy
+from ._energy import kinetic_energy as kinetic_energy
+from ._energy import total_energy as total_energy
+from ._eom import equations_of_motion as equations_of_motion
+from ._eom import forward_dynamics as forward_dynamics
+from ._mass import coriolis_force as coriolis_force
+from ._mass import coriolis_matrix as coriolis_matrix
+from ._mass import mass_matrix as mass_matrix

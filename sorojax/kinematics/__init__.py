@@ -33,3 +33,4 @@ from ._recursion import (
 from ._recursion import (
     strains as strains,
 )
+from ._fit import strain_coordinates as strain_coordinates

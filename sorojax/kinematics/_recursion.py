@@ -9,7 +9,8 @@ X_a + h (1/2 -+ sqrt(3)/6):
     g_{a+1} = g_a exp(Omega),  J_{a+1} = Ad(exp(Omega))^-1 (J_a + T(Omega) dOmega).
 
 A lumped joint is the same step with Omega = Phi_j q_j. Links run in topological order
-(a Python loop over the static tree); points inside a division run in ``lax.scan``.
+(a Python loop over the static tree); the points of a division are vectorised
+(see :func:`_division_scan`).
 Jacobian columns are full width (n_dof) so that trees compose without bookkeeping.
 """
 
@@ -20,7 +21,7 @@ import jax.numpy as jnp
 from jax import lax
 from jaxtyping import Array, Float
 
-from ..lie import Ad_inv, ad
+from ..lie import Ad_inv, ad, hat3
 from ..model._precompute import DivisionData, LinkageData
 from ._step import Ad_inv_Rp, exp_and_tangent, pose
 
@@ -51,28 +52,57 @@ def magnus_omega(h, P, r, q_d):
     return Omega, xi1, xi2
 
 
+def _Ad(g):
+    """Ad(g) of a 4x4 pose, angular first: [[R, 0], [hat(p) R, R]]."""
+    R, p = g[:3, :3], g[:3, 3]
+    Z = jnp.zeros((3, 3), dtype=g.dtype)
+    return jnp.block([[R, Z], [hat3(p) @ R, R]])
+
+
+def _prefix_poses(E):
+    """Relative poses ``G_a = E_0 E_1 ... E_{a-1}`` (``G_0 = I``), log-depth scan."""
+    G = lax.associative_scan(jnp.matmul, E)
+    eye = jnp.eye(4, dtype=E.dtype)[None]
+    return jnp.concatenate([eye, G])
+
+
 def _division_scan(g0, J0, dd: DivisionData, q):
-    """Poses and Jacobians at every point of one division (first point included)."""
+    """Poses and Jacobians at every point of one division (first point included).
+
+    Vectorised over the division's steps: every Magnus twist depends on q alone, so
+    all exp(Omega_a) and T(Omega_a) are evaluated at once; the only sequential part is
+    the prefix product of the step poses (an associative scan, log depth). In the
+    frame of the division's first point the Jacobian recursion is a prefix sum,
+
+        Ad(G_a) J_a = J_0 + sum_{b<a} Ad(G_b) T_b dOmega_b,
+
+    with G_a the pose of point a relative to the first point.
+    """
     o, n = dd.offset, dd.n_dof
     q_d = q[o : o + n]
-
-    def step(carry, x):
-        g, J = carry
-        h, P, r = x
-        Omega, xi1, xi2 = magnus_omega(h, P, r, q_d)
-        c = _C * h * h
-        R, p, T = exp_and_tangent(Omega)
-        g = g @ pose(R, p)
-        if n:
-            dOmega = 0.5 * h * (P[0] + P[1]) + c * (ad(xi1) @ P[1] - ad(xi2) @ P[0])
-            J = J.at[:, o : o + n].add(T @ dOmega)
-        J = Ad_inv_Rp(R, p) @ J
-        return (g, J), (g, J)
-
-    _, (gs, Js) = lax.scan(step, (g0, J0), (dd.h, dd.Phi_z, dd.xi_ref_z))
-    gs = jnp.concatenate([g0[None], gs])
-    Js = jnp.concatenate([J0[None], Js])
-    return gs, Js
+    xi = jnp.einsum("szan,n->sza", dd.Phi_z, q_d) + dd.xi_ref_z
+    xi1, xi2 = xi[:, 0], xi[:, 1]
+    c = _C * dd.h * dd.h
+    ad1, ad2 = jax.vmap(ad)(xi1), jax.vmap(ad)(xi2)
+    Omega = 0.5 * dd.h[:, None] * (xi1 + xi2) + c[:, None] * jnp.einsum(
+        "sab,sb->sa", ad1, xi2
+    )
+    R, p, T = jax.vmap(exp_and_tangent)(Omega)
+    E = jax.vmap(pose)(R, p)
+    G = _prefix_poses(E)  # (m + 1, 4, 4)
+    gs = jnp.einsum("ab,pbc->pac", g0, G)
+    Ginv = jax.vmap(lambda g: Ad_inv_Rp(g[:3, :3], g[:3, 3]))(G)
+    Js = jnp.broadcast_to(J0, (G.shape[0],) + J0.shape)
+    if n:
+        AdG = jax.vmap(_Ad)(G[:-1])  # (m, 6, 6)
+        P1, P2 = dd.Phi_z[:, 0], dd.Phi_z[:, 1]
+        dOmega = 0.5 * dd.h[:, None, None] * (P1 + P2) + c[:, None, None] * (
+            jnp.einsum("sab,sbn->san", ad1, P2) - jnp.einsum("sab,sbn->san", ad2, P1)
+        )
+        S = jnp.einsum("sab,sbc,scn->san", AdG, T, dOmega)  # (m, 6, n)
+        S = jnp.concatenate([jnp.zeros_like(S[:1]), jnp.cumsum(S, axis=0)])
+        Js = Js.at[:, :, o : o + n].add(S)
+    return gs, jnp.einsum("pab,pbn->pan", Ginv, Js)
 
 
 def poses_and_jacobians(

@@ -1,0 +1,6 @@
+"""Dynamics integration with diffrax: :func:`simulate` and its :class:`Trajectory`."""
+
+from ._simulate import DEFAULT_SOLVER as DEFAULT_SOLVER
+from ._simulate import SOLVERS as SOLVERS
+from ._simulate import simulate as simulate
+from ._trajectory import Trajectory as Trajectory

@@ -1,0 +1,233 @@
+"""Time integration of M(q) qdd = f(q, qd, t) with diffrax (the manual's dynamics).
+
+The state is SoRoSim's ``qqd = [q, qd]``; the vector field solves ``M qdd = f`` by one
+Cholesky factorisation per evaluation (:mod:`sorojax.dynamics._eom`). The linkage's
+constant arrays (K, D, bases, section matrices) are precomputed once per call, outside
+the integrator's loop. Implicit solvers take the Jacobian of the vector field by
+forward-mode autodiff. The compiled core never raises (no host callback unless a
+progress bar is asked for), so it is cached like any jitted function; failures come
+back as a result code and are raised by the Python wrapper when ``throw=True``.
+"""
+
+from collections.abc import Callable
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, ArrayLike
+
+from .._results import RESULTS
+from ..dynamics._eom import GeneralizedForce, accelerations
+from ..kinematics._api import _as_q
+from ..model._linkage import Linkage
+from ..model._precompute import precompute
+from ._trajectory import Trajectory
+
+SOLVERS: dict[str, Callable[[], diffrax.AbstractSolver]] = {
+    "tsit5": diffrax.Tsit5,
+    "dopri5": diffrax.Dopri5,
+    "dopri8": diffrax.Dopri8,
+    "kvaerno3": diffrax.Kvaerno3,
+    "kvaerno4": diffrax.Kvaerno4,
+    "kvaerno5": diffrax.Kvaerno5,
+    "implicit_euler": diffrax.ImplicitEuler,
+}
+"""Solvers selectable by name; any ``diffrax.AbstractSolver`` instance is also taken."""
+
+DEFAULT_SOLVER = "kvaerno5"
+
+
+def _make_solver(solver) -> diffrax.AbstractSolver:
+    if isinstance(solver, diffrax.AbstractSolver):
+        return solver
+    if isinstance(solver, str) and solver.lower() in SOLVERS:
+        return SOLVERS[solver.lower()]()
+    raise ValueError(
+        f"solver = {solver!r} is not known; give one of {sorted(SOLVERS)} or a "
+        "diffrax.AbstractSolver instance (e.g. diffrax.Kvaerno5())."
+    )
+
+
+def _vector_field(linkage: Linkage, generalized_force):
+    def field(t, y, data):
+        n = y.shape[0] // 2
+        q, qd = y[:n], y[n:]
+        qdd = accelerations(linkage, data, t, q, qd, generalized_force)
+        return jnp.concatenate([qd, qdd])
+
+    return field
+
+
+def _result_code(sol: diffrax.Solution) -> RESULTS:
+    finite = jnp.all(jnp.isfinite(sol.ys[-1]))
+    ok = sol.result == diffrax.RESULTS.successful
+    steps = sol.result == diffrax.RESULTS.max_steps_reached
+    code = RESULTS.where(steps, RESULTS.max_steps_reached, RESULTS.failed)
+    code = RESULTS.where(ok, RESULTS.successful, code)
+    return RESULTS.where(ok & ~finite, RESULTS.nonlinear_divergence, code)
+
+
+@eqx.filter_jit
+def _simulate(
+    linkage: Linkage,
+    y0: Array,
+    t0: Array,
+    t1: Array,
+    ts: Array,
+    solver: diffrax.AbstractSolver,
+    controller: diffrax.AbstractStepSizeController,
+    dt0: Array | None,
+    max_steps: int,
+    generalized_force,
+    progress_meter: diffrax.AbstractProgressMeter,
+    adjoint: diffrax.AbstractAdjoint,
+) -> Trajectory:
+    data = precompute(linkage)
+    sol = diffrax.diffeqsolve(
+        diffrax.ODETerm(_vector_field(linkage, generalized_force)),
+        solver,
+        t0,
+        t1,
+        dt0,
+        y0,
+        args=data,
+        saveat=diffrax.SaveAt(ts=ts),
+        stepsize_controller=controller,
+        max_steps=max_steps,
+        adjoint=adjoint,
+        throw=False,
+        progress_meter=progress_meter,
+    )
+    n = y0.shape[0] // 2
+    assert sol.ys is not None and sol.ts is not None and sol.stats is not None
+    return Trajectory(
+        t=sol.ts,
+        q=sol.ys[:, :n],
+        qd=sol.ys[:, n:],
+        result=_result_code(sol),
+        num_steps=sol.stats["num_steps"],
+        num_accepted_steps=sol.stats["num_accepted_steps"],
+        num_rejected_steps=sol.stats["num_rejected_steps"],
+    )
+
+
+def simulate(
+    linkage: Linkage,
+    t1: ArrayLike,
+    q0: ArrayLike | None = None,
+    qd0: ArrayLike | None = None,
+    *,
+    t0: ArrayLike = 0.0,
+    ts: ArrayLike | None = None,
+    n_save: int = 101,
+    solver: str | diffrax.AbstractSolver = DEFAULT_SOLVER,
+    rtol: float = 1e-6,
+    atol: float = 1e-8,
+    dt0: float | None = None,
+    adaptive: bool = True,
+    max_steps: int = 16384,
+    generalized_force: GeneralizedForce | None = None,
+    progress: bool = False,
+    adjoint: diffrax.AbstractAdjoint | None = None,
+    throw: bool = True,
+) -> Trajectory:
+    """Integrate the linkage's dynamics from ``t0`` to ``t1``.
+
+    Args:
+        linkage: the model (gravity, point wrenches and the custom hook included).
+        t1: final time [s].
+        q0: initial coordinates ``(n_dof,)`` (default zeros: the reference shape).
+        qd0: initial velocities ``(n_dof,)`` (default zeros).
+        t0: initial time [s].
+        ts: save times (increasing, within ``[t0, t1]``); default ``n_save`` evenly
+            spaced times from ``t0`` to ``t1``.
+        n_save: number of save times when ``ts`` is not given.
+        solver: a name in ``sorojax.integrate.SOLVERS`` (``"kvaerno5"`` default,
+            chosen by the work-precision benchmark: implicit, 5th order, takes large
+            steps on stiff soft rods) or any ``diffrax.AbstractSolver``.
+        rtol: relative tolerance of the adaptive step-size controller.
+        atol: absolute tolerance (states are ``q`` [-, or m / rad for joints] and
+            ``qd`` [1/s]).
+        dt0: initial step [s]; chosen automatically when adaptive and ``None``.
+        adaptive: adaptive steps (PID controller) or, if ``False``, constant ``dt0``.
+        max_steps: most steps before giving up (``RESULTS.max_steps_reached``).
+        generalized_force: optional ``tau(t, q, qd) -> (n_dof,)`` generalised
+            actuation force (pure JAX), added to the right-hand side.
+        progress: show a tqdm progress bar (its host callback makes the compiled
+            program uncacheable; leave off in batch runs).
+        adjoint: a diffrax adjoint for gradients (default
+            ``diffrax.RecursiveCheckpointAdjoint()``: exact reverse-mode gradients).
+        throw: raise ``RuntimeError`` on failure (under an outer jit an equinox
+            runtime error); use ``throw=False`` under ``vmap`` and read ``result``.
+
+    Returns:
+        A :class:`Trajectory`.
+
+    Raises:
+        ValueError: bad shapes, unknown solver, ``ts`` outside ``[t0, t1]``.
+        RuntimeError: the integration failed and ``throw`` is True.
+    """
+    q0 = jnp.zeros(linkage.n_dof) if q0 is None else _as_q(linkage, q0, "q0")
+    qd0 = jnp.zeros_like(q0) if qd0 is None else _as_q(linkage, qd0, "qd0")
+    y0 = jnp.concatenate([q0, qd0.astype(q0.dtype)])
+    dtype = y0.dtype
+    t0_, t1_ = jnp.asarray(t0, dtype=dtype), jnp.asarray(t1, dtype=dtype)
+    if ts is None:
+        if n_save < 1:
+            raise ValueError(f"n_save = {n_save}; give at least 1 save time.")
+        ts_ = jnp.linspace(t0_, t1_, n_save)
+    else:
+        ts_ = jnp.asarray(ts, dtype=dtype).reshape(-1)
+        if not isinstance(ts_, jax.core.Tracer) and not isinstance(
+            t1_, jax.core.Tracer
+        ):
+            if ts_.size == 0 or bool(ts_[0] < t0_) or bool(ts_[-1] > t1_):
+                raise ValueError(
+                    f"ts spans [{float(ts_[0]) if ts_.size else 'empty'}, "
+                    f"{float(ts_[-1]) if ts_.size else 'empty'}]; save times must lie "
+                    f"within [t0, t1] = [{float(t0_)}, {float(t1_)}]."
+                )
+    if max_steps < 1:
+        raise ValueError(f"max_steps = {max_steps}; give a positive integer.")
+    solver_ = _make_solver(solver)
+    if adaptive:
+        controller = diffrax.PIDController(rtol=rtol, atol=atol)
+    else:
+        if dt0 is None:
+            raise ValueError(
+                "adaptive=False needs a step: give dt0 (the constant step, in s)."
+            )
+        controller = diffrax.ConstantStepSize()
+    dt0_ = None if dt0 is None else jnp.asarray(dt0, dtype=dtype)
+    meter = diffrax.TqdmProgressMeter() if progress else diffrax.NoProgressMeter()
+    adjoint = diffrax.RecursiveCheckpointAdjoint() if adjoint is None else adjoint
+    traj = _simulate(
+        linkage,
+        y0,
+        t0_,
+        t1_,
+        ts_,
+        solver_,
+        controller,
+        dt0_,
+        max_steps,
+        generalized_force,
+        meter,
+        adjoint,
+    )
+    if not throw:
+        return traj
+    failed = traj.result != RESULTS.successful
+    if isinstance(failed, jax.core.Tracer):
+        return eqx.tree_at(lambda s: s.q, traj, traj.result.error_if(traj.q, failed))
+    if bool(failed):
+        message = RESULTS._index_to_message[int(traj.result._value)]
+        raise RuntimeError(
+            f"simulate failed: {message} After {int(traj.num_steps)} steps "
+            f"({int(traj.num_rejected_steps)} rejected). For a stiff model use an "
+            "implicit solver ('kvaerno5', 'kvaerno3', 'implicit_euler'); otherwise "
+            "raise max_steps, loosen rtol/atol, or pass throw=False to inspect the "
+            "trajectory up to the failure."
+        )
+    return traj

@@ -1,0 +1,48 @@
+"""The result of :func:`sorojax.simulate`: saved states, result code and statistics."""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Float, Int
+
+from .._results import RESULTS
+
+
+class Trajectory(eqx.Module):
+    """States of a simulation at its save times.
+
+    Attributes:
+        t: (n_save,) save times [s].
+        q: (n_save, n_dof) coordinates.
+        qd: (n_save, n_dof) velocities.
+        result: a :class:`sorojax.RESULTS` code; ``RESULTS.successful`` when the
+            integration reached ``t1``. Entries after a failure are ``inf``.
+        num_steps: steps attempted (accepted + rejected).
+        num_accepted_steps: accepted steps.
+        num_rejected_steps: rejected steps (adaptive step-size control).
+    """
+
+    t: Float[Array, " n_save"]
+    q: Float[Array, "n_save n_dof"]
+    qd: Float[Array, "n_save n_dof"]
+    result: RESULTS
+    num_steps: Int[Array, ""]
+    num_accepted_steps: Int[Array, ""]
+    num_rejected_steps: Int[Array, ""]
+
+    @property
+    def qqd(self) -> Float[Array, "n_save two_n_dof"]:
+        """States as SoRoSim's ``qqd``: ``[q, qd]`` side by side, one row per time."""
+        return jnp.concatenate([self.q, self.qd], axis=-1)
+
+    def poses(self, linkage) -> Float[Array, "n_save n_points 4 4"]:
+        """World poses of every significant point at every save time."""
+        from ..kinematics import forward_kinematics
+
+        return jax.vmap(lambda q: forward_kinematics(linkage, q))(self.q)
+
+    def tip_positions(self, linkage, link: int = -1) -> Array:
+        """Tip position of ``link`` (1-based; -1 = the last link) at every save time."""
+        from ..kinematics import tip_pose
+
+        return jax.vmap(lambda q: tip_pose(linkage, q, link)[:3, 3])(self.q)
