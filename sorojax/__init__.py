@@ -7,19 +7,13 @@ Conventions: SI units; 6-vectors angular first ``(wx, wy, wz, vx, vy, vz)``; wre
 from ._results import RESULTS as RESULTS
 from ._results import StaticsSolution as StaticsSolution
 from .dynamics import (
-    damping_matrix as damping_matrix,
-)
-from .dynamics import (
-    generalized_external_force as generalized_external_force,
-)
-from .dynamics import (
-    stiffness_matrix as stiffness_matrix,
-)
-from .dynamics import (
     coriolis_force as coriolis_force,
 )
 from .dynamics import (
     coriolis_matrix as coriolis_matrix,
+)
+from .dynamics import (
+    damping_matrix as damping_matrix,
 )
 from .dynamics import (
     elastic_energy as elastic_energy,
@@ -31,6 +25,9 @@ from .dynamics import (
     forward_dynamics as forward_dynamics,
 )
 from .dynamics import (
+    generalized_external_force as generalized_external_force,
+)
+from .dynamics import (
     gravitational_energy as gravitational_energy,
 )
 from .dynamics import (
@@ -38,6 +35,9 @@ from .dynamics import (
 )
 from .dynamics import (
     mass_matrix as mass_matrix,
+)
+from .dynamics import (
+    stiffness_matrix as stiffness_matrix,
 )
 from .dynamics import (
     total_energy as total_energy,

@@ -2,6 +2,12 @@
 
 from ._elastic import damping_matrix as damping_matrix
 from ._elastic import stiffness_matrix as stiffness_matrix
+from ._energy import elastic_energy as elastic_energy
+from ._energy import gravitational_energy as gravitational_energy
+from ._energy import kinetic_energy as kinetic_energy
+from ._energy import total_energy as total_energy
+from ._eom import equations_of_motion as equations_of_motion
+from ._eom import forward_dynamics as forward_dynamics
 from ._external import (
     external_force as external_force,
 )
@@ -18,12 +24,6 @@ from ._external import (
     point_wrenches as point_wrenches,
 )
 from ._generalized import generalized_external_force as generalized_external_force
-from ._energy import elastic_energy as elastic_energy
-from ._energy import gravitational_energy as gravitational_energy
-from ._energy import kinetic_energy as kinetic_energy
-from ._energy import total_energy as total_energy
-from ._eom import equations_of_motion as equations_of_motion
-from ._eom import forward_dynamics as forward_dynamics
 from ._mass import coriolis_force as coriolis_force
 from ._mass import coriolis_matrix as coriolis_matrix
 from ._mass import mass_matrix as mass_matrix

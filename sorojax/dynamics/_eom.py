@@ -33,7 +33,7 @@ def mass_and_force(
     qd,
     generalized_force: GeneralizedForce | None = None,
 ) -> tuple[Array, Array]:
-    """``(M, f)`` with ``M qdd = f``: the mass matrix and every other generalised force."""
+    """``(M, f)`` with ``M qdd = f``: mass matrix and all other generalised forces."""
     g, J, eta, etadot_v = kinematics_with_rates(data, q, qd)
     W = external_wrenches(linkage, data, t, g) - _gyroscopic(
         _weighted_inertia(data), eta, etadot_v
@@ -98,7 +98,7 @@ def equations_of_motion(
     t: ArrayLike = 0.0,
     generalized_force: GeneralizedForce | None = None,
 ) -> tuple[Float[Array, "n_dof n_dof"], Float[Array, " n_dof"]]:
-    """``(M, f)``: mass matrix and right-hand side of ``M qdd = f`` at ``(q, qd, t)``."""
+    """``(M, f)``: mass matrix and right side of ``M qdd = f`` at ``(q, qd, t)``."""
     q, qd = _as_q(linkage, q), _as_q(linkage, qd, "qd")
     t = jnp.asarray(t, dtype=q.dtype)
     return mass_and_force(linkage, precompute(linkage), t, q, qd, generalized_force)

@@ -24,6 +24,7 @@ from ._api import (
 from ._api import (
     tip_pose as tip_pose,
 )
+from ._fit import strain_coordinates as strain_coordinates
 from ._recursion import (
     jacobians_dot as jacobians_dot,
 )
@@ -33,4 +34,3 @@ from ._recursion import (
 from ._recursion import (
     strains as strains,
 )
-from ._fit import strain_coordinates as strain_coordinates

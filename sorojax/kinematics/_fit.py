@@ -35,14 +35,22 @@ def strain_coordinates(
     Returns:
         ``(n_dof,)`` coordinates.
     """
+    soft = [i + 1 for i, lk in enumerate(linkage.links) if isinstance(lk, SoftLink)]
     if not 1 <= link <= linkage.n_links or not isinstance(
         linkage.links[link - 1], SoftLink
     ):
         raise ValueError(
             f"link = {link} is not a soft link of this linkage (links are 1-based; "
-            f"soft links: {[i + 1 for i, lk in enumerate(linkage.links) if isinstance(lk, SoftLink)]})."
+            f"soft links: {soft})."
         )
-    fn = strain if callable(strain) else (lambda s, c=jnp.asarray(strain): c)
+    if callable(strain):
+        fn = strain
+    else:
+        const = jnp.asarray(strain)
+
+        def fn(s):
+            return const
+
     data = precompute(linkage)
     lay = linkage.layout.links[link - 1]
     q = jnp.zeros(linkage.n_dof) if q is None else jnp.asarray(q, dtype=float)
