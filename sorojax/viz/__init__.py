@@ -1,9 +1,17 @@
 """Plots of linkage configurations (matplotlib, imported only when a plot is made).
 
 ``plot_configuration`` (alias ``plotq``) draws any configuration in 3D;
-``plot_reference`` (alias ``plotq0``) draws q = 0 with the coordinate frames.
+``plot_reference`` (alias ``plotq0``) draws q = 0 with the coordinate frames;
+``animate`` (the manual's ``plotqqd``) writes a video of a trajectory and
+``plot_time_series`` plots its coordinates, tip position or energies against time.
 """
 
+from ._animate import (
+    animate as animate,
+)
+from ._animate import (
+    plot_time_series as plot_time_series,
+)
 from ._plot import (
     plot_configuration as plot_configuration,
 )
