@@ -78,8 +78,18 @@ def coefficients(theta2):
     return tuple(jnp.where(small, a, b) for a, b in zip(series, closed, strict=True))
 
 
+def _outer(a, b):
+    return a[:, None] * b[None, :]
+
+
 def exp_and_tangent(Omega):
     """Rotation, translation of exp(Omega) and the 6x6 tangent operator T(Omega).
+
+    Products of skew matrices are written in closed form (W = hat(w), V = hat(v)):
+    W^2 = w w^T - |w|^2 I, W V = v w^T - (w.v) I, W V W = -(w.v) W,
+    W^2 V = w (w x v)^T - |w|^2 V, V W^2 = (v x w) w^T - |w|^2 V,
+    W V W^2 = W^2 V W = -(w.v) W^2, so the kernel is elementwise arithmetic (no
+    matrix products), which XLA fuses into few kernels.
 
     Args:
         Omega: twist (angular first), shape ``(6,)``.
@@ -90,20 +100,22 @@ def exp_and_tangent(Omega):
     w, v = Omega[:3], Omega[3:]
     W = hat3(w)
     V = hat3(v)
-    W2 = W @ W
-    A, B, C, D, F = coefficients(jnp.dot(w, w))
+    theta2 = jnp.sum(w * w)
+    wv = jnp.sum(w * v)
     eye = jnp.eye(3, dtype=Omega.dtype)
+    W2 = _outer(w, w) - theta2 * eye
+    A, B, C, D, F = coefficients(theta2)
     R = eye + A * W + B * W2
     Tso3 = eye + B * W + C * W2
-    p = Tso3 @ v
-    WV = W @ V
-    VW = V @ W
-    WVW = WV @ W
+    wxv = jnp.cross(w, v)
+    p = v + B * wxv + C * (w * wv - theta2 * v)
+    WV_VW = _outer(v, w) + _outer(w, v) - 2.0 * wv * eye
+    W2V_VW2 = _outer(w, wxv) - _outer(wxv, w) - 2.0 * theta2 * V
     Q = (
         0.5 * V
-        + C * (WV + VW + WVW)
-        + D * (W2 @ V + V @ W2 - 3.0 * WVW)
-        + F * (WVW @ W + W @ WVW)
+        + C * (WV_VW - wv * W)
+        + D * (W2V_VW2 + 3.0 * wv * W)
+        - 2.0 * F * wv * W2
     )
     Z = jnp.zeros((3, 3), dtype=Omega.dtype)
     T = jnp.block([[Tso3, Z], [Q, Tso3]])
