@@ -10,6 +10,7 @@ gathered as one body wrench per point and mapped by J^T. K and D are constant
 from collections.abc import Callable
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 from jax.scipy.linalg import cho_factor, cho_solve
 from jaxtyping import Array, ArrayLike, Float
@@ -55,6 +56,27 @@ def mass_and_force(
     return _mass_from_J(data, J), f
 
 
+@jax.custom_jvp
+def spd_solve(M: Array, f: Array) -> Array:
+    """``M^-1 f`` for symmetric positive definite ``M`` (Cholesky).
+
+    Its JVP ``dx = M^-1 (df - dM x)`` reuses the factorisation: the implicit solvers'
+    forward-mode Jacobians then cost one multi-column triangular solve, where the
+    default Cholesky derivative under ``vmap`` costs a batched factorisation per
+    tangent direction (~1000x slower on CPU at 12 DoF).
+    """
+    return cho_solve(cho_factor(M), f)
+
+
+@spd_solve.defjvp
+def _spd_solve_jvp(primals, tangents):
+    M, f = primals
+    dM, df = tangents
+    c = cho_factor(M)
+    x = cho_solve(c, f)
+    return x, cho_solve(c, df - dM @ x)
+
+
 def accelerations(
     linkage: Linkage,
     data: LinkageData,
@@ -65,7 +87,7 @@ def accelerations(
 ) -> Array:
     """``qdd`` from one Cholesky solve of ``M qdd = f``."""
     M, f = mass_and_force(linkage, data, t, q, qd, generalized_force)
-    return cho_solve(cho_factor(M), f)
+    return spd_solve(M, f)
 
 
 @eqx.filter_jit

@@ -192,7 +192,15 @@ def simulate(
         raise ValueError(f"max_steps = {max_steps}; give a positive integer.")
     solver_ = _make_solver(solver)
     if adaptive:
-        controller = diffrax.PIDController(rtol=rtol, atol=atol)
+        if isinstance(solver_, diffrax.AbstractImplicitSolver):
+            # PI control: the plain I controller makes implicit solvers on damped
+            # rods alternate accept/reject (measured: 320 steps, 149 rejected vs
+            # 117 steps, 15 rejected for Kvaerno5 over 0.5 s of the free-fall rod).
+            controller = diffrax.PIDController(
+                rtol=rtol, atol=atol, pcoeff=0.3, icoeff=0.3
+            )
+        else:
+            controller = diffrax.PIDController(rtol=rtol, atol=atol)
     else:
         if dt0 is None:
             raise ValueError(
