@@ -45,6 +45,8 @@ from .dynamics import (
 from .integrate import SOLVERS as SOLVERS
 from .integrate import Trajectory as Trajectory
 from .integrate import simulate as simulate
+from .io import load_trajectory as load_trajectory
+from .io import save_trajectory as save_trajectory
 from .kinematics import (
     Kinematics as Kinematics,
 )
