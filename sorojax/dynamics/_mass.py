@@ -52,13 +52,18 @@ def _gyroscopic(Mw, eta, etadot_v):
 
 
 def kinematics_with_rates(data: LinkageData, q, qd):
-    """``(g, J, eta, Jdot qd)`` at every point: one Jacobian pass plus its JVP."""
+    """``(g, J, eta, Jdot qd)`` at every point.
+
+    J comes from one Jacobian pass; the twists ``J qd`` from the same recursion
+    restricted to the column ``qd`` (O(points) instead of O(points n_dof)), and their
+    velocity-product rates ``Jdot qd`` as its forward-mode derivative along ``qd``.
+    """
+    g, J = poses_and_jacobians(data, q)
 
     def twists(q_):
-        g, J = poses_and_jacobians(data, q_)
-        return jnp.einsum("pai,i->pa", J, qd), (g, J)
+        return poses_and_jacobians(data, q_, qd[:, None])[1][..., 0]
 
-    eta, etadot_v, (g, J) = jax.jvp(twists, (q,), (qd,), has_aux=True)
+    eta, etadot_v = jax.jvp(twists, (q,), (qd,))
     return g, J, eta, etadot_v
 
 

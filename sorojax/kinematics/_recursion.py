@@ -28,9 +28,9 @@ from ._step import Ad_inv_Rp, exp_and_tangent, pose
 _C = math.sqrt(3.0) / 12.0
 
 
-def _joint_step(g, J, Phi, q_j, offset):
+def _joint_step(g, J, Phi, q_j, V_j):
     R, p, T = exp_and_tangent(Phi @ q_j)
-    J = J.at[:, offset : offset + Phi.shape[1]].add(T @ Phi)
+    J = J + T @ (Phi @ V_j)
     return g @ pose(R, p), Ad_inv_Rp(R, p) @ J
 
 
@@ -66,7 +66,7 @@ def _prefix_poses(E):
     return jnp.concatenate([eye, G])
 
 
-def _division_scan(g0, J0, dd: DivisionData, q):
+def _division_scan(g0, J0, dd: DivisionData, q, V):
     """Poses and Jacobians at every point of one division (first point included).
 
     Vectorised over the division's steps: every Magnus twist depends on q alone, so
@@ -76,7 +76,8 @@ def _division_scan(g0, J0, dd: DivisionData, q):
 
         Ad(G_a) J_a = J_0 + sum_{b<a} Ad(G_b) T_b dOmega_b,
 
-    with G_a the pose of point a relative to the first point.
+    with G_a the pose of point a relative to the first point. ``J`` here is the
+    Jacobian times the column block ``V`` (identity: the Jacobian; ``qd``: twists).
     """
     o, n = dd.offset, dd.n_dof
     q_d = q[o : o + n]
@@ -99,20 +100,22 @@ def _division_scan(g0, J0, dd: DivisionData, q):
         dOmega = 0.5 * dd.h[:, None, None] * (P1 + P2) + c[:, None, None] * (
             jnp.einsum("sab,sbn->san", ad1, P2) - jnp.einsum("sab,sbn->san", ad2, P1)
         )
-        S = jnp.einsum("sab,sbc,scn->san", AdG, T, dOmega)  # (m, 6, n)
-        S = jnp.concatenate([jnp.zeros_like(S[:1]), jnp.cumsum(S, axis=0)])
-        Js = Js.at[:, :, o : o + n].add(S)
+        dOmega = jnp.einsum("san,nk->sak", dOmega, V[o : o + n])
+        S = jnp.einsum("sab,sbc,sck->sak", AdG, T, dOmega)  # (m, 6, k)
+        Js = Js + jnp.concatenate([jnp.zeros_like(S[:1]), jnp.cumsum(S, axis=0)])
     return gs, jnp.einsum("pab,pbn->pan", Ginv, Js)
 
 
 def poses_and_jacobians(
-    data: LinkageData, q: Float[Array, " n_dof"]
-) -> tuple[Float[Array, "n_points 4 4"], Float[Array, "n_points 6 n_dof"]]:
+    data: LinkageData, q: Float[Array, " n_dof"], V: Array | None = None
+) -> tuple[Float[Array, "n_points 4 4"], Float[Array, "n_points 6 k"]]:
     """Poses ``g`` (world frame) and body Jacobians ``J`` at every significant point.
 
     Args:
         data: precomputed linkage (:func:`sorojax.model.precompute`).
         q: generalised coordinates, shape ``(n_dof,)``.
+        V: optional ``(n_dof, k)`` block: return ``J @ V`` instead of ``J``, at cost
+            O(points k) instead of O(points n_dof) (``V = qd[:, None]`` gives twists).
 
     Returns:
         ``(g, J)``: ``(n_points, 4, 4)`` and ``(n_points, 6, n_dof)``; ``J`` maps qd to
@@ -120,11 +123,13 @@ def poses_and_jacobians(
     """
     n = data.n_dof
     dtype = q.dtype
+    V = jnp.eye(n, dtype=dtype) if V is None else V
+    k = V.shape[1]
     tips: list = []
     gs, Js = [], []
     for ld in data.links:
         if ld.parent == 0:
-            g_p, J_p = jnp.eye(4, dtype=dtype), jnp.zeros((6, n), dtype=dtype)
+            g_p, J_p = jnp.eye(4, dtype=dtype), jnp.zeros((6, k), dtype=dtype)
         else:
             g_p, J_p = tips[ld.parent - 1]
         g = g_p @ ld.placement
@@ -132,14 +137,15 @@ def poses_and_jacobians(
         nj = ld.joint_Phi.shape[1]
         if nj:
             q_j = q[ld.joint_offset : ld.joint_offset + nj]
-            g, J = _joint_step(g, J, ld.joint_Phi, q_j, ld.joint_offset)
+            V_j = V[ld.joint_offset : ld.joint_offset + nj]
+            g, J = _joint_step(g, J, ld.joint_Phi, q_j, V_j)
         gs.append(g[None])
         Js.append(J[None])
         g = g @ ld.g_i
         J = Ad_inv(ld.g_i) @ J
         if ld.soft:
             for dd in ld.divisions:
-                gd, Jd = _division_scan(g, J, dd, q)
+                gd, Jd = _division_scan(g, J, dd, q, V)
                 gs.append(gd)
                 Js.append(Jd)
                 g, J = gd[-1], Jd[-1]
