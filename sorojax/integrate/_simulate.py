@@ -15,6 +15,7 @@ import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, ArrayLike
 
 from .._results import RESULTS
@@ -35,7 +36,51 @@ SOLVERS: dict[str, Callable[[], diffrax.AbstractSolver]] = {
 }
 """Solvers selectable by name; any ``diffrax.AbstractSolver`` instance is also taken."""
 
-DEFAULT_SOLVER = "kvaerno5"
+DEFAULT_SOLVER = "auto"
+"""``"auto"``: Tsit5 unless the linearised model is stiff over the span, then Kvaerno5.
+
+Chosen from ``benchmarks/dynamics.py``: on soft rods (the free-fall rod, damped or not)
+the explicit Tsit5 reaches a given tip error 3-15x faster than the implicit solvers,
+whose autodiff Jacobian and Newton iterations cost more than the extra explicit steps;
+on stiff rods (steel) explicit methods need steps below 2.8 / |lambda_max| and the
+implicit Kvaerno5 wins. ``"auto"`` estimates |lambda_max| of the linearisation
+``[[0, I], [-M^-1 K, -M^-1 D]]`` at ``q0`` and picks Kvaerno5 when an explicit solver
+would need more than ``AUTO_STIFF_STEPS`` steps over ``[t0, t1]``.
+"""
+
+AUTO_STIFF_STEPS = 20_000
+
+
+@eqx.filter_jit
+def _linear_terms(linkage: Linkage, q0):
+    from ..dynamics._mass import _mass_from_J
+    from ..kinematics._recursion import poses_and_jacobians
+
+    data = precompute(linkage)
+    return _mass_from_J(data, poses_and_jacobians(data, q0)[1]), data.K, data.D
+
+
+def stiffness_estimate(linkage: Linkage, q0) -> float:
+    """Largest |eigenvalue| [1/s] of the linearised state matrix at ``q0`` (at rest).
+
+    The explicit solvers' stable step is about ``2.8 / stiffness_estimate`` (Tsit5).
+    """
+    M, K, D = (np.asarray(a) for a in _linear_terms(linkage, q0))
+    n = M.shape[0]
+    MK, MD = np.linalg.solve(M, K), np.linalg.solve(M, D)
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-MK, -MD]])
+    return float(np.abs(np.linalg.eigvals(A)).max()) if n else 0.0
+
+
+def _choose_solver(solver, linkage, q0, t0, t1):
+    if not (isinstance(solver, str) and solver.lower() == "auto"):
+        return solver
+    leaves = jax.tree.leaves(eqx.filter((linkage, q0, t0, t1), eqx.is_array))
+    if any(isinstance(x, jax.core.Tracer) for x in leaves):
+        return "tsit5"  # traced model: no host-side analysis (documented)
+    lam = stiffness_estimate(linkage, q0)
+    n_explicit = abs(float(t1) - float(t0)) * lam / 2.8
+    return "kvaerno5" if n_explicit > AUTO_STIFF_STEPS else "tsit5"
 
 
 def _make_solver(solver) -> diffrax.AbstractSolver:
@@ -44,7 +89,7 @@ def _make_solver(solver) -> diffrax.AbstractSolver:
     if isinstance(solver, str) and solver.lower() in SOLVERS:
         return SOLVERS[solver.lower()]()
     raise ValueError(
-        f"solver = {solver!r} is not known; give one of {sorted(SOLVERS)} or a "
+        f"solver = {solver!r} is not known; give 'auto', one of {sorted(SOLVERS)} or a "
         "diffrax.AbstractSolver instance (e.g. diffrax.Kvaerno5())."
     )
 
@@ -102,6 +147,7 @@ def _simulate(
     n = y0.shape[0] // 2
     assert sol.ys is not None and sol.ts is not None and sol.stats is not None
     return Trajectory(
+        solver=type(solver).__name__,
         t=sol.ts,
         q=sol.ys[:, :n],
         qd=sol.ys[:, n:],
@@ -143,9 +189,10 @@ def simulate(
         ts: save times (increasing, within ``[t0, t1]``); default ``n_save`` evenly
             spaced times from ``t0`` to ``t1``.
         n_save: number of save times when ``ts`` is not given.
-        solver: a name in ``sorojax.integrate.SOLVERS`` (``"kvaerno5"`` default,
-            chosen by the work-precision benchmark: implicit, 5th order, takes large
-            steps on stiff soft rods) or any ``diffrax.AbstractSolver``.
+        solver: ``"auto"`` (default: Tsit5, or Kvaerno5 when the linearised model at
+            ``q0`` is stiff over the span; see ``DEFAULT_SOLVER``; under an outer
+            jit/vmap/grad with traced parameters ``"auto"`` means Tsit5), a name in
+            ``sorojax.integrate.SOLVERS`` or any ``diffrax.AbstractSolver``.
         rtol: relative tolerance of the adaptive step-size controller.
         atol: absolute tolerance (states are ``q`` [-, or m / rad for joints] and
             ``qd`` [1/s]).
@@ -190,7 +237,7 @@ def simulate(
                 )
     if max_steps < 1:
         raise ValueError(f"max_steps = {max_steps}; give a positive integer.")
-    solver_ = _make_solver(solver)
+    solver_ = _make_solver(_choose_solver(solver, linkage, q0, t0_, t1_))
     if adaptive:
         if isinstance(solver_, diffrax.AbstractImplicitSolver):
             # PI control: the plain I controller makes implicit solvers on damped

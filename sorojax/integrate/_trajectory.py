@@ -20,6 +20,8 @@ class Trajectory(eqx.Module):
         num_steps: steps attempted (accepted + rejected).
         num_accepted_steps: accepted steps.
         num_rejected_steps: rejected steps (adaptive step-size control).
+        solver: name of the diffrax solver class that produced it ("" if loaded or
+            built by hand).
     """
 
     t: Float[Array, " n_save"]
@@ -29,6 +31,7 @@ class Trajectory(eqx.Module):
     num_steps: Int[Array, ""]
     num_accepted_steps: Int[Array, ""]
     num_rejected_steps: Int[Array, ""]
+    solver: str = eqx.field(static=True, default="")
 
     @property
     def qqd(self) -> Float[Array, "n_save two_n_dof"]:
