@@ -16,9 +16,15 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optimistix as optx
 from jaxtyping import Array, ArrayLike
 
 from .._results import RESULTS
+
+try:  # diffrax's marker for "take the tolerance from the step-size controller"
+    from diffrax._root_finder import use_stepsize_tol as _UNSET
+except ImportError:  # pragma: no cover - layout of a future diffrax
+    _UNSET = None
 from ..dynamics._eom import GeneralizedForce, accelerations
 from ..kinematics._api import _as_q
 from ..model._linkage import Linkage
@@ -91,6 +97,29 @@ def _make_solver(solver) -> diffrax.AbstractSolver:
     raise ValueError(
         f"solver = {solver!r} is not known; give 'auto', one of {sorted(SOLVERS)} or a "
         "diffrax.AbstractSolver instance (e.g. diffrax.Kvaerno5())."
+    )
+
+
+def _root_finder_tolerances(solver, rtol, atol):
+    """Give an implicit solver's root finder ``rtol``/``atol`` where they are unset.
+
+    Under adaptive stepping diffrax takes them from the step-size controller; with
+    constant steps there is no controller, so the same numbers are set here (with the
+    controller's RMS norm) instead of leaving diffrax to refuse the run.
+    """
+    if not isinstance(solver, diffrax.AbstractImplicitSolver):
+        return solver
+    rf = solver.root_finder
+    fields = ("rtol", "atol", "norm")
+    values = {"rtol": rtol, "atol": atol, "norm": optx.rms_norm}
+    unset = [f for f in fields if getattr(rf, f, None) is _UNSET]
+    if not unset:
+        return solver
+    return eqx.tree_at(
+        lambda s: [getattr(s.root_finder, f) for f in unset],
+        solver,
+        [values[f] for f in unset],
+        is_leaf=lambda x: x is _UNSET,
     )
 
 
@@ -254,6 +283,7 @@ def simulate(
                 "adaptive=False needs a step: give dt0 (the constant step, in s)."
             )
         controller = diffrax.ConstantStepSize()
+        solver_ = _root_finder_tolerances(solver_, rtol, atol)
     dt0_ = None if dt0 is None else jnp.asarray(dt0, dtype=dtype)
     meter = diffrax.TqdmProgressMeter() if progress else diffrax.NoProgressMeter()
     adjoint = diffrax.RecursiveCheckpointAdjoint() if adjoint is None else adjoint
