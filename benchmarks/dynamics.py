@@ -367,8 +367,10 @@ def case_orders(st, case, solver=None):
     return st["orders"]
 
 
-def bench_wp(quick, implicit_orders):
+def bench_wp(quick, implicit_orders, orders=None):
     st = wp_settings(quick, implicit_orders)
+    if orders:
+        st["orders"] = tuple(orders)
     t1 = st["t1"]
     refs, ref_info = {}, []
     for case in WP_CASES:
@@ -1213,6 +1215,14 @@ def main(argv=None):
         help="basis orders at which the implicit solvers enter the WP sweep"
         " (default 3: each costs 0.5-2 min of compilation)",
     )
+    ap.add_argument(
+        "--orders",
+        type=int,
+        nargs="+",
+        default=None,
+        help="basis orders of the explicit solvers in the WP sweep (default: 3 with"
+        " --quick, 1 2 3 4 without)",
+    )
     args = ap.parse_args(argv)
     parts = args.part or ["wp", "stability", "speed", "scaling"]
     RESULTS_DIR.mkdir(parents=True, exist_ok=True)
@@ -1238,7 +1248,7 @@ def main(argv=None):
     if "wp" in parts:
         print("\n[1] Work-precision, free-fall rod", flush=True)
         t0 = time.perf_counter()
-        res = bench_wp(args.quick, args.implicit_orders)
+        res = bench_wp(args.quick, args.implicit_orders, args.orders)
         write_csv(RESULTS_DIR / "dynamics_wp.csv", res["rows"])
         write_csv(RESULTS_DIR / "dynamics_wp_basis.csv", res["basis_error"])
         plot_wp(

@@ -833,7 +833,7 @@ def main(argv=None):
     ap.add_argument("--stability-span", type=float, default=0.3)
     ap.add_argument("--recompute-reference", action="store_true")
     ap.add_argument(
-        "--skip", default="", help="comma list of: soromox,pyelastica,damped"
+        "--skip", default="", help="comma list of: matched,soromox,pyelastica,damped"
     )
     args = ap.parse_args(argv)
     span = args.span or (0.3 if args.quick else 1.0)
@@ -859,19 +859,21 @@ def main(argv=None):
     for name, r in ref_meta["runs"].items():
         print(f"    {name:<58} |tip - ref|/L <= {r['tip_difference_vs_reference']:.1e}")
 
-    print(f"\n[2] Matched tip accuracy <= {args.target:g} L, undamped, {span:g} s")
-    matched = bench_sorojax_matched(
-        ref, span, n_save, args.target, solvers, repeats, args.budget
-    )
+    matched = []
     short = min(args.stability_span, span)
-    if soromox is not None and "soromox" not in skip:
+    if "matched" not in skip:
+        print(f"\n[2] Matched tip accuracy <= {args.target:g} L, undamped, {span:g} s")
+        matched = bench_sorojax_matched(
+            ref, span, n_save, args.target, solvers, repeats, args.budget
+        )
+    if soromox is not None and not {"soromox", "matched"} & skip:
         matched.append(
             bench_soromox_matched(
                 ref, span, n_save, args.target, repeats, args.budget, short
             )
         )
     elastica_row = None
-    if elastica is not None and "pyelastica" not in skip:
+    if elastica is not None and not {"pyelastica", "matched"} & skip:
         elastica_row = bench_elastica_matched(
             ref, span, args.target, repeats, args.budget, short
         )
