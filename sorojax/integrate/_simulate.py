@@ -20,16 +20,16 @@ import optimistix as optx
 from jaxtyping import Array, ArrayLike
 
 from .._results import RESULTS
-
-try:  # diffrax's marker for "take the tolerance from the step-size controller"
-    from diffrax._root_finder import use_stepsize_tol as _UNSET
-except ImportError:  # pragma: no cover - layout of a future diffrax
-    _UNSET = None
 from ..dynamics._eom import GeneralizedForce, accelerations
 from ..kinematics._api import _as_q
 from ..model._linkage import Linkage
 from ..model._precompute import precompute
 from ._trajectory import Trajectory
+
+try:  # diffrax's marker for "take the tolerance from the step-size controller"
+    from diffrax._root_finder import use_stepsize_tol as _UNSET
+except ImportError:  # pragma: no cover - layout of a future diffrax
+    _UNSET = None
 
 SOLVERS: dict[str, Callable[[], diffrax.AbstractSolver]] = {
     "tsit5": diffrax.Tsit5,
@@ -107,7 +107,7 @@ def _root_finder_tolerances(solver, rtol, atol):
     constant steps there is no controller, so the same numbers are set here (with the
     controller's RMS norm) instead of leaving diffrax to refuse the run.
     """
-    if not isinstance(solver, diffrax.AbstractImplicitSolver):
+    if _UNSET is None or not isinstance(solver, diffrax.AbstractImplicitSolver):
         return solver
     rf = solver.root_finder
     fields = ("rtol", "atol", "norm")
