@@ -53,9 +53,13 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=32, help="number of loads")
     ap.add_argument("--out", default=".", help="folder for the PNG")
+    ap.add_argument("--overwrite", action="store_true", help="replace an old PNG")
     args = ap.parse_args(argv)
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    path = out / "cantilever_sweep.png"
+    if path.exists() and not args.overwrite:
+        raise SystemExit(f"{path} exists; pass --overwrite to replace it")
 
     alpha = np.linspace(0.5, 10.0, args.n)
     P = jnp.asarray(alpha * EI / L**2)
@@ -75,7 +79,6 @@ def main(argv=None):
     a2.grid(alpha=0.3)
     fig.suptitle("large-deflection cantilever: vmap over loads, grad through statics")
     fig.tight_layout()
-    path = out / "cantilever_sweep.png"
     fig.savefig(path, dpi=110)
     print(f"wrote {path}")
     return alpha, xy, dy

@@ -40,6 +40,9 @@ def main(argv=None):
     args = ap.parse_args(argv)
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    path = out / "free_fall_dynamics.png"
+    if path.exists() and not args.overwrite:
+        raise SystemExit(f"{path} exists; pass --overwrite to replace it")
 
     rod = free_fall_rod(order=3, eta=1e4)
     q0 = free_fall_q0(rod)
@@ -58,9 +61,6 @@ def main(argv=None):
     )
 
     fig = plot_time_series(traj, rod, quantities=("tip", "energy"))
-    path = out / "free_fall_dynamics.png"
-    if path.exists() and not args.overwrite:
-        raise SystemExit(f"{path} exists; pass --overwrite to replace it")
     fig.savefig(path, dpi=110)
     print(f"wrote {path}")
     if args.video:

@@ -32,9 +32,13 @@ from sorojax.viz import plot_configuration, plot_reference  # noqa: E402
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default=".", help="folder for the PNG")
+    ap.add_argument("--overwrite", action="store_true", help="replace an old PNG")
     args = ap.parse_args(argv)
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    path = out / "hybrid_statics.png"
+    if path.exists() and not args.overwrite:
+        raise SystemExit(f"{path} exists; pass --overwrite to replace it")
 
     linkage = demo_linkage()
     sol = sj.solve_statics(linkage)
@@ -60,7 +64,6 @@ def main(argv=None):
     fig, ax = plot_reference(linkage, color="0.75", frames=False)
     plot_configuration(linkage, sol.q, ax=ax)
     ax.set_title("hybrid scene: reference (grey) and equilibrium")
-    path = out / "hybrid_statics.png"
     fig.savefig(path, dpi=110)
     print(f"wrote {path}")
     return sol, (dk, dE)
