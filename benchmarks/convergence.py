@@ -38,6 +38,7 @@ import jax
 jax.config.update("jax_enable_x64", True)
 
 import jax.numpy as jnp  # noqa: E402
+from _common import git_state  # noqa: E402
 
 import sorojax  # noqa: E402
 from sorojax.scenes import cantilever  # noqa: E402
@@ -102,31 +103,6 @@ def continuation(compiled, alpha, n_dof, load_steps):
         steps = steps + out[4]
     out[4] = steps
     return (*out, q)
-
-
-def git_state():
-    """HEAD commit and whether sorojax/ has uncommitted changes (others edit it)."""
-    import subprocess
-
-    root = Path(__file__).resolve().parent.parent
-    try:
-        head = subprocess.run(
-            ["git", "rev-parse", "HEAD"],
-            cwd=root,
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "sorojax"],
-            cwd=root,
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.rstrip()
-        return {"head": head, "sorojax_uncommitted_changes": dirty.splitlines()}
-    except (OSError, subprocess.CalledProcessError):
-        return None
 
 
 def timed(f, arg, repeats):

@@ -35,7 +35,6 @@ import math
 import os
 import platform
 import statistics
-import subprocess
 import sys
 import time
 from functools import partial
@@ -50,6 +49,7 @@ import equinox as eqx  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 import scipy.linalg  # noqa: E402
+from _common import git_state  # noqa: E402
 
 import sorojax as sj  # noqa: E402
 from sorojax.scenes import free_fall_q0, free_fall_rod  # noqa: E402
@@ -80,28 +80,6 @@ STYLE = {  # colour, marker
 
 
 # --------------------------------------------------------------------------- utils
-
-
-def git_state():
-    """HEAD commit and whether sorojax/ has uncommitted changes (others edit it)."""
-    try:
-        head = subprocess.run(
-            ["git", "rev-parse", "HEAD"],
-            cwd=ROOT,
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "sorojax"],
-            cwd=ROOT,
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.rstrip()
-        return {"head": head, "sorojax_uncommitted_changes": dirty.splitlines()}
-    except (OSError, subprocess.CalledProcessError):
-        return None
 
 
 def environment():

@@ -39,7 +39,6 @@ import math
 import os
 import platform
 import statistics
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -51,6 +50,7 @@ jax.config.update("jax_enable_x64", True)
 import equinox as eqx  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
+from _common import git_state  # noqa: E402
 
 import sorojax  # noqa: E402
 from sorojax.scenes import free_fall_q0, free_fall_rod  # noqa: E402
@@ -103,25 +103,6 @@ SAVE_DT = 0.01
 
 
 # --------------------------------------------------------------------------- helpers
-def git_state():
-    try:
-        head = subprocess.run(
-            ["git", "rev-parse", "HEAD"],
-            cwd=ROOT,
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "sorojax"],
-            cwd=ROOT,
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.rstrip()
-        return {"head": head, "sorojax_uncommitted_changes": dirty.splitlines()}
-    except (OSError, subprocess.CalledProcessError):
-        return None
 
 
 def tip_error(tips, ref):

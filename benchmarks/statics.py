@@ -36,6 +36,7 @@ jax.config.update("jax_enable_x64", True)
 import equinox as eqx  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
+from _common import git_state  # noqa: E402
 
 import sorojax  # noqa: E402
 from sorojax.scenes import cantilever  # noqa: E402
@@ -53,31 +54,6 @@ MODES_12 = (1, 1, 1, 0, 0, 0)  # torsion + bending about y and z
 ORDER_12 = 3  # cubic: 3 modes x 4 = 12 DoF
 MODES_30 = (1, 1, 1, 0, 0, 0)
 ORDER_30 = 9  # 3 modes x 10 = 30 DoF
-
-
-def git_state():
-    """HEAD commit and whether sorojax/ has uncommitted changes (others edit it)."""
-    import subprocess
-
-    root = Path(__file__).resolve().parent.parent
-    try:
-        head = subprocess.run(
-            ["git", "rev-parse", "HEAD"],
-            cwd=root,
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "sorojax"],
-            cwd=root,
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.rstrip()
-        return {"head": head, "sorojax_uncommitted_changes": dirty.splitlines()}
-    except (OSError, subprocess.CalledProcessError):
-        return None
 
 
 def timed(f, *args, repeats, warmup=True):
