@@ -1,6 +1,9 @@
 """Helpers shared by the benchmark scripts (imported from the scripts' own folder)."""
 
+import os
+import platform
 import subprocess
+import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -26,3 +29,29 @@ def git_state():
         return {"head": head, "sorojax_uncommitted_changes": dirty.splitlines()}
     except (OSError, subprocess.CalledProcessError):
         return None
+
+
+def environment(**extra):
+    """Machine, library versions, load and git state of a run, plus ``extra`` keys.
+
+    Import after ``jax.config.update("jax_enable_x64", ...)``: x64 is read here.
+    """
+    import equinox as eqx
+    import jax
+
+    import sorojax
+
+    return {
+        "devices": [str(d) for d in jax.devices()],
+        "backend": jax.default_backend(),
+        "jax_version": jax.__version__,
+        "equinox_version": eqx.__version__,
+        "sorojax_version": sorojax.__version__,
+        "cpu_count": os.cpu_count(),
+        "python": sys.version.split()[0],
+        "platform": platform.platform(),
+        "processor": platform.processor() or platform.machine(),
+        "x64": bool(jax.config.jax_enable_x64),
+        "load_average_at_start": list(os.getloadavg()),
+        "git": git_state(),
+    } | extra

@@ -33,9 +33,7 @@ import csv
 import json
 import math
 import os
-import platform
 import statistics
-import sys
 import time
 from functools import partial
 from pathlib import Path
@@ -49,7 +47,7 @@ import equinox as eqx  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 import scipy.linalg  # noqa: E402
-from _common import git_state  # noqa: E402
+from _common import environment as base_environment  # noqa: E402
 
 import sorojax as sj  # noqa: E402
 from sorojax.scenes import free_fall_q0, free_fall_rod  # noqa: E402
@@ -83,22 +81,10 @@ STYLE = {  # colour, marker
 
 
 def environment():
-    return {
-        "devices": [str(d) for d in jax.devices()],
-        "backend": jax.default_backend(),
-        "jax_version": jax.__version__,
-        "equinox_version": eqx.__version__,
-        "diffrax_version": diffrax.__version__,
-        "sorojax_version": sj.__version__,
-        "default_solver": sj.integrate.DEFAULT_SOLVER,
-        "cpu_count": os.cpu_count(),
-        "python": sys.version.split()[0],
-        "platform": platform.platform(),
-        "processor": platform.processor() or platform.machine(),
-        "x64": bool(jax.config.jax_enable_x64),
-        "load_average_at_start": list(os.getloadavg()),
-        "git": git_state(),
-    }
+    return base_environment(
+        diffrax_version=diffrax.__version__,
+        default_solver=sj.integrate.DEFAULT_SOLVER,
+    )
 
 
 def block(x):
@@ -906,18 +892,7 @@ def bench_speed(quick, wp_rows):
             (solver, 3, "pid"), partial(run_adaptive, rod, t1, q0, solver, rtol)
         )
         _, med_pub, _, _ = timed(
-            partial(
-                sj.simulate,
-                rod,
-                t1,
-                q0,
-                solver=solver,
-                rtol=rt,
-                atol=at,
-                n_save=N_SAVE,
-                max_steps=MAX_STEPS,
-                throw=False,
-            ),
+            partial(run, rod, q0, rt, at),  # not compiled ahead: simulate's dispatch
             min_repeats=repeats,
             max_repeats=repeats,
             budget_s=0,

@@ -37,7 +37,6 @@ import argparse
 import json
 import math
 import os
-import platform
 import statistics
 import sys
 import time
@@ -50,6 +49,7 @@ jax.config.update("jax_enable_x64", True)
 import equinox as eqx  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
+from _common import environment as base_environment  # noqa: E402
 from _common import git_state  # noqa: E402
 
 import sorojax  # noqa: E402
@@ -733,22 +733,13 @@ def bench_damped(args, repeats, budget_s, elastica_choice):
 
 # --------------------------------------------------------------------------- main
 def environment():
-    env = {
-        "devices": [str(d) for d in jax.devices()],
-        "jax_version": jax.__version__,
-        "equinox_version": eqx.__version__,
-        "sorojax_version": sorojax.__version__,
-        "soromox_version": getattr(soromox, "__version__", None),
-        "soromox_import_error": SOROMOX_IMPORT_ERROR,
-        "pyelastica_version": None,
-        "pyelastica_import_error": ELASTICA_IMPORT_ERROR,
-        "cpu_count": os.cpu_count(),
-        "python": sys.version.split()[0],
-        "executable": sys.executable,
-        "platform": platform.platform(),
-        "load_average_at_start": list(os.getloadavg()),
-        "git": git_state(),
-    }
+    env = base_environment(
+        soromox_version=getattr(soromox, "__version__", None),
+        soromox_import_error=SOROMOX_IMPORT_ERROR,
+        pyelastica_version=None,
+        pyelastica_import_error=ELASTICA_IMPORT_ERROR,
+        executable=sys.executable,
+    )
     try:
         from importlib.metadata import version
 

@@ -23,9 +23,7 @@ import argparse
 import json
 import math
 import os
-import platform
 import statistics
-import sys
 import time
 from pathlib import Path
 
@@ -33,10 +31,9 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
-import equinox as eqx  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
-from _common import git_state  # noqa: E402
+from _common import environment  # noqa: E402
 
 import sorojax  # noqa: E402
 from sorojax.scenes import cantilever  # noqa: E402
@@ -200,23 +197,6 @@ def bench_batch(n_batch, n_loop, repeats, batch_repeats, chunk):
             "newton_iterations_min_max": [int(np.min(steps)), int(np.max(steps))],
         }
     return out
-
-
-def environment():
-    return {
-        "devices": [str(d) for d in jax.devices()],
-        "backend": jax.default_backend(),
-        "jax_version": jax.__version__,
-        "equinox_version": eqx.__version__,
-        "sorojax_version": sorojax.__version__,
-        "cpu_count": os.cpu_count(),
-        "python": sys.version.split()[0],
-        "platform": platform.platform(),
-        "processor": platform.processor() or platform.machine(),
-        "x64": bool(jax.config.jax_enable_x64),
-        "load_average_at_start": list(os.getloadavg()),
-        "git": git_state(),
-    }
 
 
 def ms(s):
