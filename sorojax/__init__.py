@@ -6,6 +6,10 @@ Conventions: SI units; 6-vectors angular first ``(wx, wy, wz, vx, vy, vz)``; wre
 
 from ._results import RESULTS as RESULTS
 from ._results import StaticsSolution as StaticsSolution
+from .dynamics import actuation_matrix as actuation_matrix
+from .dynamics import cable_lengths as cable_lengths
+from .dynamics import closure_errors as closure_errors
+from .dynamics import constraint_jacobian as constraint_jacobian
 from .dynamics import (
     coriolis_force as coriolis_force,
 )
@@ -74,21 +78,29 @@ from .kinematics import (
 from .kinematics import (
     tip_pose as tip_pose,
 )
+from .model import Cable as Cable
+from .model import CableAnchor as CableAnchor
+from .model import CableSpan as CableSpan
 from .model import (
     CircularSection as CircularSection,
 )
+from .model import ClosedLoopJoint as ClosedLoopJoint
+from .model import ConstantPath as ConstantPath
 from .model import (
     CustomBasis as CustomBasis,
 )
+from .model import CustomPath as CustomPath
 from .model import (
     Division as Division,
 )
 from .model import (
     EllipticalSection as EllipticalSection,
 )
+from .model import HelicalPath as HelicalPath
 from .model import (
     Joint as Joint,
 )
+from .model import JointActuator as JointActuator
 from .model import (
     LegendreBasis as LegendreBasis,
 )
@@ -101,6 +113,7 @@ from .model import (
 from .model import (
     MonomialBasis as MonomialBasis,
 )
+from .model import ObliquePath as ObliquePath
 from .model import (
     PointWrench as PointWrench,
 )

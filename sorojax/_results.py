@@ -30,9 +30,20 @@ class StaticsSolution(eqx.Module):
             for linear joint coordinates).
         num_steps: Newton (or trust-region) iterations used, summed over load steps.
         result: a :class:`RESULTS` code; ``RESULTS.successful`` when converged.
+        efforts: generalised efforts of the prescribed joint coordinates (in the
+            order of ``Linkage.prescribed``) that hold them [N m or N].
+        lam: closed-loop multipliers (constraint wrench components, one per row;
+            the minimum-norm choice where rows are redundant).
+        constraint_error: max-norm of the closed-loop errors e(q).
+        constraint_rank: numerical rank of the constraint Jacobian (less than
+            ``Linkage.n_constraints`` when rows are redundant, e.g. a planar loop).
     """
 
     q: Float[Array, " n_dof"]
     residual_norm: Float[Array, ""]
     num_steps: Int[Array, ""]
     result: RESULTS
+    efforts: Float[Array, " n_prescribed"]
+    lam: Float[Array, " n_constraints"]
+    constraint_error: Float[Array, ""]
+    constraint_rank: Int[Array, ""]

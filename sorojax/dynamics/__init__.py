@@ -1,5 +1,10 @@
 """Generalised terms: M, C, K, D, external forces, equations of motion, energies."""
 
+from ._actuation import actuation_matrix as actuation_matrix
+from ._actuation import cable_lengths as cable_lengths
+from ._constraints import closure_errors as closure_errors
+from ._constraints import constraint_jacobian as constraint_jacobian
+from ._constraints import numerical_rank as numerical_rank
 from ._elastic import damping_matrix as damping_matrix
 from ._elastic import stiffness_matrix as stiffness_matrix
 from ._energy import elastic_energy as elastic_energy

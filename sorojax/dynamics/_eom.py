@@ -16,14 +16,20 @@ from jax.scipy.linalg import cho_factor, cho_solve
 from jaxtyping import Array, ArrayLike, Float
 
 from ..kinematics._api import Kinematics, _as_q
-from ..kinematics._recursion import jacobians_dot, strains
+from ..kinematics._recursion import jacobians_dot, poses_and_jacobians, strains
 from ..model._linkage import Linkage
 from ..model._precompute import LinkageData, precompute
+from ._actuation import actuation_force, effective_inputs
+from ._constraints import constraint_jacobian_from_data, constraint_terms
 from ._external import custom_wrenches, external_wrenches
 from ._mass import _gyroscopic, _mass_from_J, _weighted_inertia, kinematics_with_rates
 
 GeneralizedForce = Callable[[Array, Array, Array], ArrayLike]
 """``tau(t, q, qd) -> (n_dof,)`` generalised actuation force added to the right side."""
+
+
+InputFunction = Callable[[Array], Array]
+"""``u(t) -> (n_inputs,)`` actuation inputs as a function of time (pure JAX)."""
 
 
 def mass_and_force(
@@ -33,18 +39,42 @@ def mass_and_force(
     q,
     qd,
     generalized_force: GeneralizedForce | None = None,
+    u=None,
 ) -> tuple[Array, Array]:
-    """``(M, f)`` with ``M qdd = f``: mass matrix and all other generalised forces."""
+    """``(M, f)`` with ``M qdd = f``: mass matrix and all other generalised forces.
+
+    ``u`` are the actuation inputs at ``t`` (None: no actuator forces); prescribed
+    joints add nothing here (their efforts are constraint multipliers).
+    """
     g, J, eta, etadot_v = kinematics_with_rates(data, q, qd)
+    cache: list = []
+
+    def kin_fn():
+        if not cache:
+            cache.append(
+                Kinematics(
+                    g=g,
+                    J=J,
+                    xi=strains(data, q),
+                    eta=eta,
+                    Jdot=jacobians_dot(data, q, qd),
+                )
+            )
+        return cache[0]
+
     W = external_wrenches(linkage, data, t, g) - _gyroscopic(
         _weighted_inertia(data), eta, etadot_v
     )
+    M = _mass_from_J(data, J)
+    if linkage.added_mass is not None:
+        Ma = data.point_weight[:, None, None] * linkage.added_mass
+        W = W - jnp.einsum("pab,pb->pa", Ma, etadot_v)
+        M = M + jnp.einsum("pai,pab,pbj->ij", J, Ma, J)
     if linkage.custom_wrench is not None:
-        kin = Kinematics(
-            g=g, J=J, xi=strains(data, q), eta=eta, Jdot=jacobians_dot(data, q, qd)
-        )
-        W = W + custom_wrenches(linkage, data, t, q, qd, kin)
+        W = W + custom_wrenches(linkage, data, t, q, qd, kin_fn())
     f = jnp.einsum("pai,pa->i", J, W) - data.K @ q - data.D @ qd
+    if u is not None:
+        f = f + actuation_force(linkage, data, t, q, qd, u, kin_fn)
     if generalized_force is not None:
         tau = jnp.asarray(generalized_force(t, q, qd), dtype=f.dtype)
         if tau.shape != f.shape:
@@ -53,7 +83,7 @@ def mass_and_force(
                 f"({f.shape[0]},) (one force per coordinate)."
             )
         f = f + tau
-    return _mass_from_J(data, J), f
+    return M, f
 
 
 @jax.custom_jvp
@@ -85,9 +115,134 @@ def accelerations(
     qd,
     generalized_force: GeneralizedForce | None = None,
 ) -> Array:
-    """``qdd`` from one Cholesky solve of ``M qdd = f``."""
+    """``qdd`` from one Cholesky solve of ``M qdd = f`` (no actuators, no loops)."""
     M, f = mass_and_force(linkage, data, t, q, qd, generalized_force)
     return spd_solve(M, f)
+
+
+def is_constrained(linkage: Linkage) -> bool:
+    """Whether the dynamics has constraint rows (prescribed joints or closed loops)."""
+    return bool(len(linkage.prescribed[0]) or linkage.closed_loops)
+
+
+def prescribed_motion(linkage: Linkage, u_fn: InputFunction, t):
+    """``(q_p, qd_p, qdd_p)`` of the prescribed coordinates at ``t`` (autodiff in t)."""
+    _, ui = linkage.prescribed
+
+    def qp(t_):
+        return u_fn(t_)[ui]
+
+    def qdp(t_):
+        return jax.jvp(qp, (t_,), (jnp.ones_like(t_),))[1]
+
+    v, vd = jax.jvp(qp, (t,), (jnp.ones_like(t),))
+    return v, vd, jax.jvp(qdp, (t,), (jnp.ones_like(t),))[1]
+
+
+class ConstrainedState(eqx.Module):
+    """Accelerations and multipliers of the constrained dynamics at one instant.
+
+    Attributes:
+        qd: velocities with the prescribed entries set to their exact values.
+        qdd: accelerations.
+        u: inputs after the actuator-strength hook.
+        efforts: efforts of the prescribed coordinates (multipliers of their rows).
+        lam: closed-loop multipliers.
+    """
+
+    qd: Array
+    qdd: Array
+    u: Array
+    efforts: Array
+    lam: Array
+
+
+def constrained_dynamics(
+    linkage: Linkage,
+    data: LinkageData,
+    t,
+    q,
+    qd,
+    u_fn: InputFunction,
+    generalized_force: GeneralizedForce | None = None,
+) -> ConstrainedState:
+    """The saddle-point solve with prescribed coordinates and closed loops.
+
+    ``M qdd = f + G^T mu`` with constraint rows ``G qdd = b``: one-hot rows
+    ``qdd_p = u''(t)`` for prescribed coordinates (their values and velocities are
+    set to ``u(t)``, ``u'(t)`` first) and, for closed loops, Baumgarte-stabilised
+    ``A qdd = -Adot qd - (2/T) A qd - e/T^2`` (T = ``linkage.baumgarte_time``). The
+    multipliers come from ``(G M^-1 G^T + eps I) mu = b - G M^-1 f`` with a tiny
+    relative ``eps`` (1e-10), which keeps redundant rows (a planar loop's out-of-plane
+    rows) solvable: they get the minimum-norm multipliers.
+    """
+    qi, _ = linkage.prescribed
+    n = q.shape[0]
+    u = u_fn(t)
+    rows, rhs = [], []
+    if len(qi):
+        qp, qdp, qddp = prescribed_motion(linkage, u_fn, t)
+        q, qd = q.at[qi].set(qp), qd.at[qi].set(qdp)
+        rows.append(jnp.eye(n, dtype=q.dtype)[qi])
+        rhs.append(qddp)
+    if linkage.closed_loops:
+        e, A, bias = constraint_terms(linkage, data, q, qd)
+        Tb = linkage.baumgarte_time
+        rows.append(A)
+        rhs.append(-bias - (2.0 / Tb) * (A @ qd) - e / Tb**2)
+    M, f = mass_and_force(linkage, data, t, q, qd, generalized_force, u)
+    if rows:
+        G, b = jnp.concatenate(rows), jnp.concatenate(rhs)
+        X = spd_solve(M, jnp.concatenate([f[:, None], G.T], axis=1))
+        Minv_f, Minv_Gt = X[:, 0], X[:, 1:]
+        S = G @ Minv_Gt
+        eps = 1e-10 * jnp.maximum(jnp.trace(S) / S.shape[0], 1e-300)
+        mu = jnp.linalg.solve(
+            S + eps * jnp.eye(S.shape[0], dtype=S.dtype), b - G @ Minv_f
+        )
+        qdd = Minv_f + Minv_Gt @ mu
+    else:
+        mu = jnp.zeros((0,), q.dtype)
+        qdd = spd_solve(M, f)
+    u_eff = effective_inputs(linkage, t, q, qd, lambda: _kin(data, q, qd), u)
+    return ConstrainedState(
+        qd=qd, qdd=qdd, u=u_eff, efforts=mu[: len(qi)], lam=mu[len(qi) :]
+    )
+
+
+def consistent_velocities(
+    linkage: Linkage, data: LinkageData, t, q, qd, u_fn: InputFunction
+) -> Array:
+    """``qd`` projected onto the velocity constraints (mass-weighted, least change).
+
+    Prescribed entries become ``u'(t)`` and the rest change as little as possible in
+    kinetic energy so that ``A qd = 0`` (closed loops): ``qd + M^-1 G^T mu``.
+    """
+    qi, _ = linkage.prescribed
+    rows, rhs = [], []
+    if len(qi):
+        _, qdp, _ = prescribed_motion(linkage, u_fn, t)
+        rows.append(jnp.eye(q.shape[0], dtype=q.dtype)[qi])
+        rhs.append(qdp)
+    if linkage.closed_loops:
+        rows.append(constraint_jacobian_from_data(linkage, data, q))
+        rhs.append(jnp.zeros(linkage.n_constraints, q.dtype))
+    if not rows:
+        return qd
+    G, b = jnp.concatenate(rows), jnp.concatenate(rhs)
+    M = mass_and_force(linkage, data, t, q, jnp.zeros_like(qd))[0]
+    Minv_Gt = spd_solve(M, G.T)
+    S = G @ Minv_Gt
+    eps = 1e-12 * jnp.maximum(jnp.trace(S) / S.shape[0], 1e-300)
+    mu = jnp.linalg.solve(S + eps * jnp.eye(S.shape[0], dtype=S.dtype), b - G @ qd)
+    return qd + Minv_Gt @ mu
+
+
+def _kin(data, q, qd) -> Kinematics:
+    g, J = poses_and_jacobians(data, q)
+    return Kinematics(
+        g=g, J=J, xi=strains(data, q), eta=J @ qd, Jdot=jacobians_dot(data, q, qd)
+    )
 
 
 @eqx.filter_jit

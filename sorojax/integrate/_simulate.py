@@ -20,7 +20,14 @@ import optimistix as optx
 from jaxtyping import Array, ArrayLike
 
 from .._results import RESULTS
-from ..dynamics._eom import GeneralizedForce, accelerations
+from ..dynamics._eom import (
+    GeneralizedForce,
+    InputFunction,
+    accelerations,
+    consistent_velocities,
+    constrained_dynamics,
+    prescribed_motion,
+)
 from ..kinematics._api import _as_q
 from ..model._linkage import Linkage
 from ..model._precompute import precompute
@@ -123,12 +130,32 @@ def _root_finder_tolerances(solver, rtol, atol):
     )
 
 
-def _vector_field(linkage: Linkage, generalized_force):
-    def field(t, y, data):
+def _needs_inputs(linkage: Linkage) -> bool:
+    return bool(
+        linkage.actuators
+        or linkage.closed_loops
+        or linkage.custom_actuation is not None
+    )
+
+
+def _input_function(u_fn, u_const) -> InputFunction:
+    if u_fn is None:
+        return lambda t: u_const
+    return lambda t: jnp.asarray(u_fn(t), dtype=u_const.dtype).reshape(u_const.shape)
+
+
+def _vector_field(linkage: Linkage, generalized_force, u_fn):
+    def field(t, y, args):
+        data, u_const = args
         n = y.shape[0] // 2
         q, qd = y[:n], y[n:]
-        qdd = accelerations(linkage, data, t, q, qd, generalized_force)
-        return jnp.concatenate([qd, qdd])
+        if not _needs_inputs(linkage):
+            qdd = accelerations(linkage, data, t, q, qd, generalized_force)
+            return jnp.concatenate([qd, qdd])
+        st = constrained_dynamics(
+            linkage, data, t, q, qd, _input_function(u_fn, u_const), generalized_force
+        )
+        return jnp.concatenate([st.qd, st.qdd])
 
     return field
 
@@ -156,16 +183,24 @@ def _simulate(
     generalized_force,
     progress_meter: diffrax.AbstractProgressMeter,
     adjoint: diffrax.AbstractAdjoint,
+    u_fn,
+    u_const: Array,
 ) -> Trajectory:
     data = precompute(linkage)
+    if _needs_inputs(linkage):
+        n = y0.shape[0] // 2
+        qd0 = consistent_velocities(
+            linkage, data, t0, y0[:n], y0[n:], _input_function(u_fn, u_const)
+        )
+        y0 = jnp.concatenate([y0[:n], qd0])
     sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(_vector_field(linkage, generalized_force)),
+        diffrax.ODETerm(_vector_field(linkage, generalized_force, u_fn)),
         solver,
         t0,
         t1,
         dt0,
         y0,
-        args=data,
+        args=(data, u_const),
         saveat=diffrax.SaveAt(ts=ts),
         stepsize_controller=controller,
         max_steps=max_steps,
@@ -175,6 +210,15 @@ def _simulate(
     )
     n = y0.shape[0] // 2
     assert sol.ys is not None and sol.ts is not None and sol.stats is not None
+    extra = {}
+    if _needs_inputs(linkage):
+        fn = _input_function(u_fn, u_const)
+        st = jax.vmap(
+            lambda t, y: constrained_dynamics(
+                linkage, data, t, y[:n], y[n:], fn, generalized_force
+            )
+        )(sol.ts, sol.ys)
+        extra = {"u": st.u, "efforts": st.efforts, "lam": st.lam}
     return Trajectory(
         solver=type(solver).__name__,
         t=sol.ts,
@@ -184,6 +228,7 @@ def _simulate(
         num_steps=sol.stats["num_steps"],
         num_accepted_steps=sol.stats["num_accepted_steps"],
         num_rejected_steps=sol.stats["num_rejected_steps"],
+        **extra,
     )
 
 
@@ -203,6 +248,7 @@ def simulate(
     adaptive: bool = True,
     max_steps: int = 16384,
     generalized_force: GeneralizedForce | None = None,
+    u: ArrayLike | InputFunction | None = None,
     progress: bool = False,
     adjoint: diffrax.AbstractAdjoint | None = None,
     throw: bool = True,
@@ -230,6 +276,15 @@ def simulate(
         max_steps: most steps before giving up (``RESULTS.max_steps_reached``).
         generalized_force: optional ``tau(t, q, qd) -> (n_dof,)`` generalised
             actuation force (pure JAX), added to the right-hand side.
+        u: actuation inputs ``(n_inputs,)`` (constant), or a pure JAX function
+            ``t -> (n_inputs,)`` (see ``Linkage.input_slices``): joint forces, cable
+            tensions (> 0 pulls), and for prescribed joints the coordinates q(t),
+            whose velocities and accelerations are taken by autodiff (give a smooth
+            function). Default zeros. Prescribed coordinates start at u(t0), u'(t0)
+            whatever q0, qd0 say; with closed loops qd0 is projected onto the
+            velocity constraints (least kinetic-energy change), while q0 must be
+            assembled (e.g. from ``solve_statics``). A function closing over
+            traced values (under ``jax.grad``) must be an ``equinox.Partial``.
         progress: show a tqdm progress bar (its host callback makes the compiled
             program uncacheable; leave off in batch runs).
         adjoint: a diffrax adjoint for gradients (default
@@ -246,9 +301,14 @@ def simulate(
     """
     q0 = jnp.zeros(linkage.n_dof) if q0 is None else _as_q(linkage, q0, "q0")
     qd0 = jnp.zeros_like(q0) if qd0 is None else _as_q(linkage, qd0, "qd0")
-    y0 = jnp.concatenate([q0, qd0.astype(q0.dtype)])
-    dtype = y0.dtype
+    dtype = q0.dtype
     t0_, t1_ = jnp.asarray(t0, dtype=dtype), jnp.asarray(t1, dtype=dtype)
+    u_fn, u_const = _split_inputs(linkage, u, dtype)
+    qi, _ = linkage.prescribed
+    if len(qi):  # start the prescribed coordinates on their motion
+        qp, qdp, _ = prescribed_motion(linkage, _input_function(u_fn, u_const), t0_)
+        q0, qd0 = q0.at[qi].set(qp), qd0.at[qi].set(qdp)
+    y0 = jnp.concatenate([q0, qd0.astype(q0.dtype)])
     if ts is None:
         if n_save < 1:
             raise ValueError(f"n_save = {n_save}; give at least 1 save time.")
@@ -300,6 +360,8 @@ def simulate(
         generalized_force,
         meter,
         adjoint,
+        u_fn,
+        u_const,
     )
     if not throw:
         return traj
@@ -316,3 +378,24 @@ def simulate(
             "trajectory up to the failure."
         )
     return traj
+
+
+def _split_inputs(linkage: Linkage, u, dtype):
+    """``(function or None, constant array)`` from the ``u`` argument of simulate."""
+    m = linkage.n_inputs
+    if callable(u):
+        if m == 0:
+            raise ValueError(
+                "u is a function but this linkage has no actuators (n_inputs = 0): "
+                "add actuators to Linkage(actuators=...) or drop u."
+            )
+        return u, jnp.zeros(m, dtype)
+    if u is None:
+        return None, jnp.zeros(m, dtype)
+    u = jnp.asarray(u, dtype=dtype).reshape(-1)
+    if u.shape != (m,):
+        raise ValueError(
+            f"u has shape {u.shape}; this linkage has n_inputs = {m} (see "
+            "Linkage.input_slices): give one entry per input, or a function of t."
+        )
+    return None, u

@@ -22,6 +22,10 @@ class Trajectory(eqx.Module):
         num_rejected_steps: rejected steps (adaptive step-size control).
         solver: name of the diffrax solver class that produced it ("" if loaded or
             built by hand).
+        u: (n_save, n_inputs) actuation inputs (after the actuator-strength hook),
+            or None for a linkage without actuators or closed loops.
+        efforts: (n_save, n_prescribed) efforts of prescribed joint coordinates.
+        lam: (n_save, n_constraints) closed-loop multipliers.
     """
 
     t: Float[Array, " n_save"]
@@ -32,6 +36,9 @@ class Trajectory(eqx.Module):
     num_accepted_steps: Int[Array, ""]
     num_rejected_steps: Int[Array, ""]
     solver: str = eqx.field(static=True, default="")
+    u: Float[Array, "n_save n_inputs"] | None = None
+    efforts: Float[Array, "n_save n_prescribed"] | None = None
+    lam: Float[Array, "n_save n_constraints"] | None = None
 
     @property
     def qqd(self) -> Float[Array, "n_save two_n_dof"]:

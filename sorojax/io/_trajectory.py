@@ -5,8 +5,9 @@ Two formats, chosen by the file suffix:
 - ``.npz`` (NumPy archive): the exact trajectory. Arrays ``t``, ``q``, ``qd``, the
   result code as an index ``result`` plus the list of code names ``result_names``
   (so that a file stays readable if codes are added), the step counters
-  ``num_steps``, ``num_accepted_steps``, ``num_rejected_steps``, and
-  ``format_version``. Loading gives back the same values, dtypes and shapes (batched,
+  ``num_steps``, ``num_accepted_steps``, ``num_rejected_steps``,
+  ``format_version``, and for actuated or closed-loop models ``u``, ``efforts`` and
+  ``lam``. Loading gives back the same values, dtypes and shapes (batched,
   vmapped trajectories included). No pickles are written or read.
 - ``.mat`` (MATLAB, SoRoSim's ``DynamicsSolution.mat``): ``t`` as an
   ``(n_save, 1)`` column [s] and ``qqd = [q, qd]`` as ``(n_save, 2 n_dof)``. Only the
@@ -35,6 +36,7 @@ FORMAT_VERSION = 1
 """Version of the ``.npz`` layout written by :func:`save_trajectory`."""
 
 _COUNTERS = ("num_steps", "num_accepted_steps", "num_rejected_steps")
+_OPTIONAL = ("u", "efforts", "lam")  # actuated / constrained runs only
 # eqx.Enumeration has no public way to list its items or to read/set an item's index:
 # the private ``_name_to_item`` (names in definition order) and ``_value`` are used
 # here only; test_io's round trips catch a change in equinox.
@@ -98,6 +100,9 @@ def _save_npz(file: pathlib.Path, traj: Trajectory) -> None:
     }
     for name in _COUNTERS:
         arrays[name] = np.asarray(getattr(traj, name))
+    for name in _OPTIONAL:
+        if getattr(traj, name) is not None:
+            arrays[name] = np.asarray(getattr(traj, name))
     with open(file, "wb") as f:
         np.savez(f, **arrays)
 
@@ -126,6 +131,7 @@ def _load_npz(path: pathlib.Path) -> Trajectory:
                 f"up to {FORMAT_VERSION}: upgrade sorojax to load it."
             )
         data = {k: archive[k] for k in needed}
+        optional = {k: jnp.asarray(archive[k]) for k in _OPTIONAL if k in archive}
     result = _result_from_index(data["result"], data["result_names"].tolist())
     return Trajectory(
         t=jnp.asarray(data["t"]),
@@ -133,6 +139,7 @@ def _load_npz(path: pathlib.Path) -> Trajectory:
         qd=jnp.asarray(data["qd"]),
         result=result,
         **{k: jnp.asarray(data[k]) for k in _COUNTERS},
+        **optional,
     )
 
 

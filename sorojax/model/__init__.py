@@ -1,5 +1,14 @@
 """Immutable model pytrees: materials, sections, bases, joints, links, loads."""
 
+from ._actuation import AbstractCablePath as AbstractCablePath
+from ._actuation import Cable as Cable
+from ._actuation import CableAnchor as CableAnchor
+from ._actuation import CableSpan as CableSpan
+from ._actuation import ConstantPath as ConstantPath
+from ._actuation import CustomPath as CustomPath
+from ._actuation import HelicalPath as HelicalPath
+from ._actuation import JointActuator as JointActuator
+from ._actuation import ObliquePath as ObliquePath
 from ._basis import (
     AbstractPolynomialBasis as AbstractPolynomialBasis,
 )
@@ -15,6 +24,7 @@ from ._basis import (
 from ._basis import (
     MonomialBasis as MonomialBasis,
 )
+from ._closure import ClosedLoopJoint as ClosedLoopJoint
 from ._joint import Joint as Joint
 from ._layout import Layout as Layout
 from ._link import (

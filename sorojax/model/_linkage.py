@@ -13,7 +13,9 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
+from ._actuation import Cable, CableAnchor, CableSpan, JointActuator
 from ._checks import check_se3, check_shape
+from ._closure import ClosedLoopJoint
 from ._layout import Layout, build_layout
 from ._link import AbstractLink, RigidLink, SoftLink
 from ._loads import PointWrench
@@ -34,6 +36,25 @@ class Linkage(eqx.Module):
             ``(t, q, qd, kinematics) -> (n_points, 6)`` of body-frame wrenches: per
             unit length at soft rod points (integrated with the quadrature weights),
             a point wrench at rigid centres of mass; ignored at other points.
+        actuators: tuple of :class:`~sorojax.JointActuator` and
+            :class:`~sorojax.Cable`; each owns a block of the input vector ``u``
+            (see :attr:`input_slices`).
+        closed_loops: tuple of :class:`~sorojax.ClosedLoopJoint`.
+        custom_actuation: optional pure JAX function ``(t, q, qd, kinematics, u) ->
+            (n_points, 6)`` of internal actuation wrenches per unit length at soft rod
+            points (body frame, moment first), mapped to generalised forces by the
+            strain basis, ``sum w Phi^T W`` (the manual's CustomActuation); ignored at
+            other points.
+        actuator_strength: optional pure JAX function ``(t, q, qd, kinematics) ->
+            (n_inputs,)`` that replaces the given inputs ``u`` (the manual's
+            CustomActuatorStrength: feedback control inside the solvers). Entries of
+            prescribed joints are ignored (their inputs stay the given q(t)).
+        added_mass: optional ``(n_points, 6, 6)`` added inertia (per unit length at
+            rod points, absolute at rigid CMs) in body frames: the force
+            ``-M_a etadot`` of a surrounding fluid, added to M (the manual's
+            M_added).
+        baumgarte_time: T_bs [s] of the Baumgarte stabilisation of closed loops in
+            dynamics (smaller holds the constraint more tightly; default 0.01).
     """
 
     links: tuple[AbstractLink, ...]
@@ -42,6 +63,12 @@ class Linkage(eqx.Module):
     gravity: Float[Array, "3"]
     point_wrenches: tuple[PointWrench, ...]
     custom_wrench: Callable | None = eqx.field(static=True)
+    actuators: tuple[Cable | JointActuator, ...]
+    closed_loops: tuple[ClosedLoopJoint, ...]
+    custom_actuation: Callable | None = eqx.field(static=True)
+    actuator_strength: Callable | None = eqx.field(static=True)
+    added_mass: Float[Array, "n_points 6 6"] | None
+    baumgarte_time: float = eqx.field(static=True)
 
     def __init__(
         self,
@@ -51,6 +78,12 @@ class Linkage(eqx.Module):
         gravity: ArrayLike = (0.0, 0.0, 0.0),
         point_wrenches=(),
         custom_wrench: Callable | None = None,
+        actuators=(),
+        closed_loops=(),
+        custom_actuation: Callable | None = None,
+        actuator_strength: Callable | None = None,
+        added_mass: ArrayLike | None = None,
+        baumgarte_time: float = 0.01,
     ):
         if isinstance(links, AbstractLink):
             links = (links,)
@@ -107,6 +140,36 @@ class Linkage(eqx.Module):
         self.gravity = jnp.asarray(gravity, dtype=float)
         self.point_wrenches = point_wrenches
         self.custom_wrench = custom_wrench
+        for name, fn in (
+            ("custom_actuation", custom_actuation),
+            ("actuator_strength", actuator_strength),
+        ):
+            if fn is not None and not callable(fn):
+                raise ValueError(f"Linkage.{name} = {fn!r}: give a function or None.")
+        self.custom_actuation = custom_actuation
+        self.actuator_strength = actuator_strength
+        if isinstance(actuators, Cable | JointActuator):
+            actuators = (actuators,)
+        self.actuators = tuple(
+            _check_actuator(k, a, links) for k, a in enumerate(tuple(actuators))
+        )
+        if isinstance(closed_loops, ClosedLoopJoint):
+            closed_loops = (closed_loops,)
+        closed_loops = tuple(closed_loops)
+        for k, c in enumerate(closed_loops):
+            _check_closed_loop(k, c, n)
+        self.closed_loops = closed_loops
+        if not float(baumgarte_time) > 0:
+            raise ValueError(
+                f"Linkage.baumgarte_time = {baumgarte_time!r}: give T_bs > 0 [s] "
+                "(default 0.01)."
+            )
+        self.baumgarte_time = float(baumgarte_time)
+        if added_mass is not None:
+            added_mass = jnp.asarray(added_mass, dtype=float)
+            n_pts = build_layout(self.signature).n_points
+            check_shape("Linkage.added_mass", added_mass, (n_pts, 6, 6))
+        self.added_mass = added_mass
 
     # ---------------------------------------------------------------- structure
     @property
@@ -116,6 +179,11 @@ class Linkage(eqx.Module):
         for pw in self.point_wrenches:
             if pw.division is not None:
                 extra.setdefault((pw.link, pw.division), []).append(pw.X1)
+        for a in getattr(self, "actuators", ()):
+            if isinstance(a, Cable):
+                for r in a.route:
+                    if isinstance(r, CableAnchor) and r.division is not None:
+                        extra.setdefault((r.link, r.division), []).append(r.X1)
         sig = []
         for i, (link, parent) in enumerate(
             zip(self.links, self.parents, strict=True), 1
@@ -161,6 +229,49 @@ class Linkage(eqx.Module):
         k = int(np.argmin(np.abs(dl.X1 - pw.X1)))
         return dl.first_point + k
 
+    def anchor_index(self, anchor: CableAnchor) -> int:
+        """Index of the significant point a cable anchor is fixed to (not ground)."""
+        return self.point_index(
+            PointWrench(
+                anchor.link,
+                jnp.zeros(6),
+                division=anchor.division,
+                X1=anchor.X1,
+                at_tip=anchor.at_tip,
+            )
+        )
+
+    # --------------------------------------------------------------- actuation
+    @property
+    def n_inputs(self) -> int:
+        """Length of the actuation input vector ``u``."""
+        return sum(a.n_inputs for a in self.actuators)
+
+    @property
+    def input_slices(self) -> tuple[slice, ...]:
+        """Slice of ``u`` owned by each actuator, in order."""
+        out, k = [], 0
+        for a in self.actuators:
+            out.append(slice(k, k + a.n_inputs))
+            k += a.n_inputs
+        return tuple(out)
+
+    @property
+    def prescribed(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(coords, inputs)``: indices into q and into u of prescribed coordinates."""
+        qi, ui = [], []
+        for a, sl in zip(self.actuators, self.input_slices, strict=True):
+            if isinstance(a, JointActuator) and a.prescribed:
+                jo = self.layout.links[a.link - 1].joint_offset
+                qi.extend(range(jo, jo + a.n_inputs))
+                ui.extend(range(sl.start, sl.stop))
+        return np.asarray(qi, dtype=int), np.asarray(ui, dtype=int)
+
+    @property
+    def n_constraints(self) -> int:
+        """Number of closed-loop constraint rows (redundant ones included)."""
+        return sum(c.n_constraints for c in self.closed_loops)
+
     def tip_point(self, link: int) -> int:
         """Index of the tip reference point of link number ``link`` (1-based)."""
         if not 1 <= link <= self.n_links:
@@ -173,8 +284,8 @@ class Linkage(eqx.Module):
         return slice(lay.joint_offset, lay.joint_offset + self.links[link - 1].n_dof)
 
 
-def _check_point_wrench(k: int, pw, links) -> None:
-    field = f"Linkage.point_wrenches[{k}]"
+def _check_point_wrench(k: int, pw, links, field: str | None = None) -> None:
+    field = f"Linkage.point_wrenches[{k}]" if field is None else field
     if not isinstance(pw, PointWrench):
         raise ValueError(f"{field} = {pw!r}: give a PointWrench.")
     n = len(links)
@@ -193,3 +304,60 @@ def _check_point_wrench(k: int, pw, links) -> None:
                 f"{field}.division = {pw.division} is out of range: link {pw.link} has "
                 f"divisions 1..{nd}."
             )
+
+
+def _check_actuator(k: int, a, links):
+    field = f"Linkage.actuators[{k}]"
+    n = len(links)
+    if isinstance(a, JointActuator):
+        if not 1 <= a.link <= n:
+            raise ValueError(f"{field}.link = {a.link} is out of range: give 1..{n}.")
+        nj = links[a.link - 1].joint.n_dof
+        if nj == 0:
+            raise ValueError(
+                f"{field}: link {a.link}'s joint is fixed ('N'), nothing to actuate; "
+                "give the link a joint with freedoms or drop the actuator."
+            )
+        return JointActuator(a.link, a.prescribed, nj)
+    if isinstance(a, Cable):
+        for j, r in enumerate(a.route):
+            f = f"{field}.route[{j}]"
+            if isinstance(r, CableSpan):
+                if not 1 <= r.link <= n or not isinstance(links[r.link - 1], SoftLink):
+                    raise ValueError(
+                        f"{f}.link = {r.link}: a CableSpan runs inside a soft link; "
+                        "give the number of a SoftLink."
+                    )
+                nd = len(links[r.link - 1].divisions)
+                if r.divisions is not None and r.divisions[1] > nd:
+                    raise ValueError(
+                        f"{f}.divisions = {r.divisions}: link {r.link} has divisions "
+                        f"1..{nd}."
+                    )
+            else:
+                if not 0 <= r.link <= n:
+                    raise ValueError(
+                        f"{f}.link = {r.link} is out of range: give 0 (ground) or "
+                        f"1..{n}."
+                    )
+                if r.link:
+                    _check_point_wrench(
+                        k,
+                        PointWrench(r.link, jnp.zeros(6), r.division, r.X1),
+                        links,
+                        field=f,
+                    )
+        return a
+    raise ValueError(f"{field} = {a!r}: give a JointActuator or a Cable.")
+
+
+def _check_closed_loop(k: int, c, n: int) -> None:
+    field = f"Linkage.closed_loops[{k}]"
+    if not isinstance(c, ClosedLoopJoint):
+        raise ValueError(f"{field} = {c!r}: give a ClosedLoopJoint.")
+    if not 1 <= c.link_A <= n:
+        raise ValueError(f"{field}.link_A = {c.link_A} is out of range: give 1..{n}.")
+    if not 0 <= c.link_B <= n or c.link_B == c.link_A:
+        raise ValueError(
+            f"{field}.link_B = {c.link_B}: give 0 (ground) or another link in 1..{n}."
+        )

@@ -15,11 +15,19 @@ also under ``vmap``) on stop-gradient data.
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import lineax as lx
+import numpy as np
 import optimistix as optx
 from jax import lax
 from jaxtyping import Array, ArrayLike
 
 from .._results import RESULTS, StaticsSolution
+from ..dynamics._actuation import actuation_force
+from ..dynamics._constraints import (
+    closure_errors_from_data,
+    constraint_jacobian_from_data,
+    numerical_rank,
+)
 from ..dynamics._external import external_force, external_force_recursive
 from ..dynamics._generalized import kinematics_from_data
 from ..kinematics._api import _as_q
@@ -34,22 +42,41 @@ def _row_scale(K) -> Array:
 
 
 def equilibrium_residual(
-    linkage: Linkage, data: LinkageData, q, t=0.0, lam=1.0
+    linkage: Linkage, data: LinkageData, q, t=0.0, lam=1.0, u=None, mu=None
 ) -> Array:
-    """Unscaled residual ``K q - lam F(q, 0, t)`` (generalised forces)."""
+    """Unscaled residual ``K q - lam (F(q, 0, t) + Q_act(q, u)) - A^T mu``.
+
+    ``u`` are the actuation inputs (default zeros), ``mu`` the closed-loop
+    multipliers (default zeros). At equilibrium the rows of prescribed coordinates
+    are their joint efforts.
+    """
+    qd = jnp.zeros_like(q)
+    cache: list = []
+
+    def kin_fn():
+        if not cache:
+            cache.append(kinematics_from_data(data, q, qd, need_jdot=False))
+        return cache[0]
+
     if linkage.custom_wrench is None:
         F = external_force_recursive(linkage, data, t, q)
     else:  # the hook may read Jacobians: form them
-        qd = jnp.zeros_like(q)
-        kin = kinematics_from_data(data, q, qd, need_jdot=False)
-        F = external_force(linkage, data, t, q, qd, kin)
-    return data.K @ q - lam * F
+        F = external_force(linkage, data, t, q, qd, kin_fn())
+    if linkage.actuators or linkage.custom_actuation is not None:
+        u = jnp.zeros(linkage.n_inputs, q.dtype) if u is None else u
+        F = F + actuation_force(linkage, data, t, q, qd, u, kin_fn)
+    r = data.K @ q - lam * F
+    if linkage.closed_loops and mu is not None:
+        _, vjp = jax.vjp(lambda q_: closure_errors_from_data(linkage, data, q_), q)
+        r = r - vjp(mu)[0]
+    return r
 
 
 @eqx.filter_jit
 def _solve_statics(
     linkage: Linkage,
     q0: ArrayLike | None = None,
+    u: ArrayLike | None = None,
     *,
     t: ArrayLike = 0.0,
     solver: optx.AbstractRootFinder | optx.AbstractLeastSquaresSolver | None = None,
@@ -71,27 +98,53 @@ def _solve_statics(
         raise ValueError(f"max_load_steps = {max_load_steps!r}: give an integer >= 1.")
     n = linkage.n_dof
     q0 = jnp.zeros(n) if q0 is None else _as_q(linkage, q0, "q0")
+    u = _as_u(linkage, u, q0.dtype)
+    qi, ui = linkage.prescribed
+    free = np.setdiff1d(np.arange(n), qi)
+    n_c = linkage.n_constraints
+    closed = n_c > 0
+    linear_solver = lx.SVD() if closed else lx.AutoLinearSolver(well_posed=None)
     if solver is None:
-        solver = optx.Newton(rtol=rtol, atol=atol)
+        solver = optx.Newton(rtol=rtol, atol=atol, linear_solver=linear_solver)
         # Intermediate load increments only need a good start for the next one.
-        intermediate = optx.Newton(rtol=1e-4, atol=1e-4)
+        intermediate = optx.Newton(rtol=1e-4, atol=1e-4, linear_solver=linear_solver)
     else:
         intermediate = solver
     data = precompute(linkage)
-    scale = _row_scale(data.K)
+    scale = _row_scale(data.K)[free]
+    q_p0 = q0[qi]
 
-    def fn(q, args):
-        data_, lam = args
-        return scale * equilibrium_residual(linkage, data_, q, t, lam)
+    def full(x, lam, u_):
+        q = jnp.zeros(n, x.dtype).at[free].set(x[: len(free)])
+        if len(qi):
+            q = q.at[qi].set(q_p0 + lam * (u_[ui] - q_p0))
+        return q, x[len(free) :]
 
-    def solve(q_start, lam, data_, solver_=solver):
+    def fn(x, args):
+        data_, lam, u_, linkage_ = args
+        q, mu = full(x, lam, u_)
+        r = equilibrium_residual(linkage_, data_, q, t, lam, u_, mu if closed else None)
+        rows = [scale * r[free]]
+        if closed:
+            rows.append(closure_errors_from_data(linkage_, data_, q))
+        return jnp.concatenate(rows)
+
+    def solve(x_start, lam, args, solver_=solver):
         return optx.root_find(
-            fn, solver_, q_start, (data_, lam), max_steps=max_steps, throw=False
+            fn,
+            solver_,
+            x_start,
+            (args[0], lam, args[1], args[2]),
+            max_steps=max_steps,
+            throw=False,
+            adjoint=optx.ImplicitAdjoint(linear_solver=linear_solver),
         )
 
+    x0 = jnp.concatenate([q0[free], jnp.zeros(n_c, q0.dtype)])
+    args = (data, u, linkage)
     # Number of load increments: given, or from the size of the scaled residual.
     if load_steps is None:
-        r0 = scale * equilibrium_residual(linkage, data, q0, t)
+        r0 = fn(x0, (data, jnp.ones((), q0.dtype), u, linkage))
         r0 = jax.lax.stop_gradient(jnp.where(jnp.isfinite(r0), r0, 0.0))
         n_inc = jnp.clip(
             jnp.ceil(jnp.max(jnp.abs(r0), initial=0.0) / load_increment),
@@ -104,28 +157,29 @@ def _solve_statics(
     # Intermediate increments lambda = k / n, k = 1 .. n - 1, in a while loop: it runs
     # only the increments needed (under vmap, those of the hardest case) and only
     # moves the starting point of the final solve, so it sees no gradients.
-    data_ng = jax.lax.stop_gradient(data)
+    args_ng = jax.lax.stop_gradient(args)
 
     def cond(carry):
         k, _, _ = carry
         return k < n_inc
 
     def body(carry):
-        k, q, n_it = carry
-        sol = solve(q, k / n_inc, data_ng, intermediate)
+        k, x, n_it = carry
+        sol = solve(x, k / n_inc, args_ng, intermediate)
         return k + 1, sol.value, n_it + sol.stats["num_steps"]
 
     zero_it = jnp.zeros((), dtype=jnp.asarray(0).dtype)
-    _, q_start, pre_steps = lax.while_loop(
-        cond, body, (jnp.ones((), q0.dtype), jax.lax.stop_gradient(q0), zero_it)
+    _, x_start, pre_steps = lax.while_loop(
+        cond, body, (jnp.ones((), q0.dtype), jax.lax.stop_gradient(x0), zero_it)
     )
     # The final solve at the full load carries the implicit adjoint.
-    sol = solve(q_start, jnp.ones((), q0.dtype), data)
-    q = sol.value
+    sol = solve(x_start, jnp.ones((), q0.dtype), args)
+    q, mu = full(sol.value, 1.0, u)
     ok = sol.result == optx.RESULTS.successful
     out_of_steps = sol.result == optx.RESULTS.max_steps_reached
     steps = pre_steps + sol.stats["num_steps"]
-    r = equilibrium_residual(linkage, data, q, t)
+    r = equilibrium_residual(linkage, data, q, t, 1.0, u, mu if closed else None)
+    e = closure_errors_from_data(linkage, data, q)
     finite = jnp.all(jnp.isfinite(q)) & jnp.all(jnp.isfinite(r))
     # Only the final step decides: from whatever start, a converged final solve is a
     # true equilibrium of the full load.
@@ -136,13 +190,41 @@ def _solve_statics(
             out_of_steps, RESULTS.max_steps_reached, RESULTS.nonlinear_divergence
         ),
     )
-    res_norm = jnp.max(jnp.abs(r), initial=0.0)
-    return StaticsSolution(q=q, residual_norm=res_norm, num_steps=steps, result=result)
+    res_norm = jnp.max(jnp.abs(r[free]), initial=0.0)
+    rank = (
+        numerical_rank(constraint_jacobian_from_data(linkage, data, q))
+        if closed
+        else jnp.zeros((), dtype=int)
+    )
+    return StaticsSolution(
+        q=q,
+        residual_norm=res_norm,
+        num_steps=steps,
+        result=result,
+        efforts=r[qi],
+        lam=mu,
+        constraint_error=jnp.max(jnp.abs(e), initial=0.0),
+        constraint_rank=rank,
+    )
+
+
+def _as_u(linkage: Linkage, u, dtype) -> Array:
+    m = linkage.n_inputs
+    if u is None:
+        return jnp.zeros(m, dtype)
+    u = jnp.asarray(u, dtype=dtype).reshape(-1) if m else jnp.zeros(0, dtype)
+    if u.shape != (m,):
+        raise ValueError(
+            f"u has shape {u.shape}; this linkage has n_inputs = {m} (see "
+            "Linkage.input_slices): give one entry per input, in actuator order."
+        )
+    return u
 
 
 def solve_statics(
     linkage: Linkage,
     q0: ArrayLike | None = None,
+    u: ArrayLike | None = None,
     *,
     t: ArrayLike = 0.0,
     solver: optx.AbstractRootFinder | optx.AbstractLeastSquaresSolver | None = None,
@@ -159,9 +241,16 @@ def solve_statics(
     Args:
         linkage: the model.
         q0: initial guess ``(n_dof,)``; default zeros (the reference configuration).
+            With closed loops, a guess near an assembled configuration.
+        u: actuation inputs ``(n_inputs,)`` in actuator order (see
+            ``Linkage.input_slices``): joint forces, cable tensions (> 0 pulls), and
+            for prescribed joints their coordinates; default zeros.
         t: time at which time-dependent loads are evaluated [s].
         solver: an optimistix root finder or least-squares solver; default
-            ``optx.Newton(rtol, atol)`` on the Jacobi-scaled residual.
+            ``optx.Newton(rtol, atol)`` on the Jacobi-scaled residual (with closed
+            loops: on the residual and the constraint errors, unknowns q and the
+            multipliers, solved with an SVD so that redundant constraint rows, e.g.
+            of a planar loop, give the minimum-norm multipliers instead of failing).
         load_steps: number of equal load increments; ``None`` (default) chooses it
             from the size of the Jacobi-scaled residual at ``q0`` (about the linear
             estimate of the largest coordinate change, e.g. a rotation in rad), so
@@ -179,7 +268,8 @@ def solve_statics(
 
     Returns:
         A :class:`~sorojax.StaticsSolution` with q, the residual max-norm, the total
-        iteration count and a result code.
+        iteration count, a result code, the efforts of prescribed joints, the
+        closed-loop multipliers, constraint error and rank.
 
     Raises:
         ValueError: bad ``q0`` shape or ``load_steps`` < 1.
@@ -188,6 +278,7 @@ def solve_statics(
     sol = _solve_statics(
         linkage,
         q0,
+        u,
         t=jnp.asarray(t, dtype=float),
         solver=solver,
         load_steps=load_steps,

@@ -1,0 +1,241 @@
+"""Generalised actuation forces: joint actuators, cables, the custom actuation hook.
+
+Cables (DESIGN.md section 4): the generalised force of a cable of tension T is
+``-T dl/dq`` with ``l(q)`` the cable's length, so ``B = -dl/dq`` is exact for any path.
+Inside a soft link the cable runs at ``d(X) = (0, y, z)`` in the cross-section frame;
+its position is ``r + R d`` and its tangent ``R (nu + k x d + d')`` with
+``xi = (k, nu) = Phi q + xi_ref``, so the length of a span is
+
+    l_span = int |nu + k x d + d'| ds
+
+(Gauss quadrature at the division's points, the same rule as K). Between consecutive
+route elements the cable runs straight, ``|p_b - p_a|`` between world points. For a
+constant offset in an inextensible rod ``dl/dk_z = -y``: the tension bends the rod
+toward the cable with moment ``T y``.
+"""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, ArrayLike, Float
+
+from ..kinematics._api import Kinematics, _as_q
+from ..model._actuation import Cable, CableSpan, JointActuator
+from ..model._linkage import Linkage
+from ..model._precompute import LinkageData, precompute
+from ._wrench_recursion import poses_with_records
+
+
+def _safe_norm(x: Array) -> Array:
+    """Euclidean norm with a zero (not NaN) gradient at x = 0."""
+    n2 = jnp.sum(x * x, axis=-1)
+    pos = n2 > 0
+    return jnp.where(pos, jnp.sqrt(jnp.where(pos, n2, 1.0)), 0.0)
+
+
+def _span_divisions(linkage: Linkage, span: CableSpan) -> range:
+    nd = len(linkage.links[span.link - 1].divisions)
+    first, last = (1, nd) if span.divisions is None else span.divisions
+    return range(first - 1, last)
+
+
+def _division_X(linkage: Linkage, link: int, k: int, X1) -> Array:
+    """Link-normalised X of division ``k`` (0-based) positions ``X1``."""
+    divs = linkage.links[link - 1].divisions
+    start = sum((d.length for d in divs[:k]), jnp.zeros(()))
+    return (start + jnp.asarray(X1) * divs[k].length) / linkage.links[link - 1].length
+
+
+def _offset3(path, X) -> Array:
+    yz = path(X)
+    return jnp.concatenate([jnp.zeros((1,), yz.dtype), yz])
+
+
+def span_length(linkage: Linkage, data: LinkageData, span: CableSpan, q) -> Array:
+    """Length of the cable inside ``span`` at ``q`` [m]."""
+    link = linkage.links[span.link - 1]
+    L_link = link.length
+    total = jnp.zeros((), q.dtype)
+    for k in _span_divisions(linkage, span):
+        dd = data.links[span.link - 1].divisions[k]
+        dl = linkage.layout.links[span.link - 1].divisions[k]
+        X = _division_X(linkage, span.link, k, dl.X1)
+        path = jax.vmap(lambda x: _offset3(span.path, x))
+        d, dX = jax.jvp(path, (X,), (jnp.ones_like(X),))
+        d_prime = dX / L_link
+        xi = jnp.einsum("pij,j->pi", dd.Phi, q[dd.offset : dd.offset + dd.n_dof])
+        xi = xi + dd.xi_ref
+        tangent = xi[:, 3:] + jnp.cross(xi[:, :3], d) + d_prime
+        wL = jnp.asarray(dl.w) * link.divisions[k].length
+        total = total + jnp.sum(wL * _safe_norm(tangent))
+    return total
+
+
+def _span_ends(linkage: Linkage, span: CableSpan):
+    """((point, local offset) at the start, (point, local offset) at the end)."""
+    ks = _span_divisions(linkage, span)
+    lay = linkage.layout.links[span.link - 1]
+    d0, d1 = lay.divisions[ks[0]], lay.divisions[ks[-1]]
+    X0 = _division_X(linkage, span.link, ks[0], 0.0)
+    X1 = _division_X(linkage, span.link, ks[-1], 1.0)
+    return (
+        (d0.first_point, _offset3(span.path, X0)),
+        (d1.first_point + len(d1.X1) - 1, _offset3(span.path, X1)),
+    )
+
+
+def _world_point(g, point: int | None, offset) -> Array:
+    if point is None:  # ground
+        return offset
+    return g[point, :3, :3] @ offset + g[point, :3, 3]
+
+
+def cable_length(linkage: Linkage, data: LinkageData, cable: Cable, q, g=None):
+    """Total length of ``cable`` at ``q``: spans plus straight segments [m]."""
+    total = jnp.zeros((), q.dtype)
+    ends = []  # (start world point, end world point) per route element
+    if len(cable.route) > 1 and g is None:
+        g = poses_with_records(data, q)[0]
+    for r in cable.route:
+        if isinstance(r, CableSpan):
+            total = total + span_length(linkage, data, r, q)
+            if g is not None:
+                (p0, o0), (p1, o1) = _span_ends(linkage, r)
+                ends.append((_world_point(g, p0, o0), _world_point(g, p1, o1)))
+        else:
+            point = None if r.link == 0 else linkage.anchor_index(r)
+            p = _world_point(g, point, r.offset)
+            ends.append((p, p))
+    for (_, a), (b, _) in zip(ends[:-1], ends[1:], strict=True):
+        total = total + _safe_norm(b - a)
+    return total
+
+
+def cable_lengths_from_data(linkage: Linkage, data: LinkageData, q) -> Array:
+    """Lengths of all cables (in actuator order), ``(n_cables,)``."""
+    cables = [a for a in linkage.actuators if isinstance(a, Cable)]
+    if not cables:
+        return jnp.zeros((0,), q.dtype)
+    g = None
+    if any(len(c.route) > 1 for c in cables):
+        g = poses_with_records(data, q)[0]
+    return jnp.stack([cable_length(linkage, data, c, q, g) for c in cables])
+
+
+def _cable_tensions(linkage: Linkage, u) -> Array:
+    return jnp.stack(
+        [
+            u[sl][0]
+            for a, sl in zip(linkage.actuators, linkage.input_slices, strict=True)
+            if isinstance(a, Cable)
+        ]
+    )
+
+
+def has_cables(linkage: Linkage) -> bool:
+    """Whether any actuator is a cable."""
+    return any(isinstance(a, Cable) for a in linkage.actuators)
+
+
+def effective_inputs(linkage: Linkage, t, q, qd, kin_fn, u) -> Array:
+    """Inputs after the actuator-strength hook (prescribed entries kept from ``u``)."""
+    if linkage.actuator_strength is None:
+        return u
+    v = jnp.asarray(linkage.actuator_strength(t, q, qd, kin_fn()), dtype=q.dtype)
+    if v.shape != (linkage.n_inputs,):
+        raise ValueError(
+            f"Linkage.actuator_strength returned shape {v.shape}; expected "
+            f"({linkage.n_inputs},) (one entry per actuation input)."
+        )
+    _, ui = linkage.prescribed
+    return v.at[ui].set(u[ui]) if len(ui) else v
+
+
+def actuation_force(linkage: Linkage, data: LinkageData, t, q, qd, u, kin_fn) -> Array:
+    """Generalised force of all actuators at inputs ``u`` (hook applied).
+
+    Prescribed joints contribute nothing here: their efforts are unknowns of the
+    solvers. ``kin_fn()`` returns the :class:`Kinematics` the hooks read.
+    """
+    Q = jnp.zeros_like(q)
+    if not linkage.actuators and linkage.custom_actuation is None:
+        return Q
+    u = effective_inputs(linkage, t, q, qd, kin_fn, u)
+    for a, sl in zip(linkage.actuators, linkage.input_slices, strict=True):
+        if isinstance(a, JointActuator) and not a.prescribed:
+            jo = linkage.layout.links[a.link - 1].joint_offset
+            Q = Q.at[jo : jo + a.n_inputs].add(u[sl])
+    if has_cables(linkage):
+        T = _cable_tensions(linkage, u)
+        Q = Q - jax.grad(lambda q_: T @ cable_lengths_from_data(linkage, data, q_))(q)
+    if linkage.custom_actuation is not None:
+        Q = Q + custom_actuation_force(linkage, data, t, q, qd, kin_fn(), u)
+    return Q
+
+
+def custom_actuation_force(
+    linkage: Linkage, data: LinkageData, t, q, qd, kin: Kinematics, u
+) -> Array:
+    """``sum w Phi^T W`` of the custom actuation hook's wrenches at rod points."""
+    W = jnp.asarray(linkage.custom_actuation(t, q, qd, kin, u), dtype=q.dtype)  # type: ignore[misc]
+    n_pts = linkage.layout.n_points
+    if W.shape != (n_pts, 6):
+        raise ValueError(
+            f"Linkage.custom_actuation returned shape {W.shape}; expected "
+            f"({n_pts}, 6) (one internal body-frame wrench per significant point)."
+        )
+    Q = jnp.zeros_like(q)
+    for ld, ll in zip(data.links, linkage.layout.links, strict=True):
+        for dd, dl in zip(ld.divisions, ll.divisions, strict=True):
+            if not dd.n_dof:
+                continue
+            p = slice(dl.first_point, dl.first_point + len(dl.X1))
+            w = data.point_weight[p]
+            Qd = jnp.einsum("p,pai,pa->i", w, dd.Phi, W[p])
+            Q = Q.at[dd.offset : dd.offset + dd.n_dof].add(Qd)
+    return Q
+
+
+def actuation_matrix_from_data(linkage: Linkage, data: LinkageData, q) -> Array:
+    """``B (n_dof, n_inputs)``: generalised force per unit effort of each input.
+
+    Joint actuators (wrench or prescribed) give unit columns on their coordinates
+    (for a prescribed joint, the column its solved effort acts through); cables give
+    ``-dl/dq``. The custom actuation hook is not included.
+    """
+    n = q.shape[0]
+    cols = []
+    dl = None
+    if has_cables(linkage):
+        dl = jax.jacrev(lambda q_: cable_lengths_from_data(linkage, data, q_))(q)
+    c = 0
+    for a in linkage.actuators:
+        if isinstance(a, JointActuator):
+            jo = linkage.layout.links[a.link - 1].joint_offset
+            cols.append(jnp.eye(n, dtype=q.dtype)[:, jo : jo + a.n_inputs])
+        else:
+            assert dl is not None
+            cols.append(-dl[c][:, None])
+            c += 1
+    if not cols:
+        return jnp.zeros((n, 0), q.dtype)
+    return jnp.concatenate(cols, axis=1)
+
+
+@eqx.filter_jit
+def cable_lengths(linkage: Linkage, q: ArrayLike) -> Float[Array, " n_cables"]:
+    """Lengths [m] of the linkage's cables at ``q``, in actuator order."""
+    q = _as_q(linkage, q)
+    return cable_lengths_from_data(linkage, precompute(linkage), q)
+
+
+@eqx.filter_jit
+def actuation_matrix(linkage: Linkage, q: ArrayLike) -> Float[Array, "n_dof n_inputs"]:
+    """The manual's actuation matrix ``B(q)``: generalised force = ``B`` times efforts.
+
+    One column per input (actuator order): unit columns on the coordinates of joint
+    actuators (wrench or prescribed), ``-dl/dq`` for a cable (force per newton of
+    tension). Exact (autodiff of the cable lengths).
+    """
+    q = _as_q(linkage, q)
+    return actuation_matrix_from_data(linkage, precompute(linkage), q)

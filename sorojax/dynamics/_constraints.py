@@ -1,0 +1,95 @@
+"""Closed-loop constraints e(q) = 0, their Jacobian A = de/dq and the bias Adot qd.
+
+For a closed-loop joint between frame A (tip of link A times g_A) and frame B (tip of
+link B, or the world, times g_B) the relative pose is ``g = g_B^-1 g_A`` and the
+errors are ``Phi_p^T log(g)`` (DESIGN.md section 2), ``Phi_p`` the orthonormal
+complement of the joint's free directions: zero exactly when g lies in the joint's
+motion set ``exp(span Phi)`` (R, P, H, C, A, S, N). The universal joint's motions are
+products ``R_u(a) R_v(b)``, not exponentials of the span, so its errors are the exact
+``(u . R v, p)``: the two free axes stay perpendicular and the centres coincide.
+A and Adot qd come from forward-mode autodiff of e (exact; no hand-derived terms).
+"""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, ArrayLike, Float
+
+from ..kinematics._api import _as_q
+from ..lie import log_se3
+from ..model._joint import perpendicular_pair
+from ..model._linkage import Linkage
+from ..model._precompute import LinkageData, precompute
+from ._wrench_recursion import poses_with_records
+
+
+def _inv(g):
+    R, p = g[:3, :3], g[:3, 3]
+    out = jnp.eye(4, dtype=g.dtype)
+    return out.at[:3, :3].set(R.T).at[:3, 3].set(-R.T @ p)
+
+
+def closure_errors_from_poses(linkage: Linkage, g) -> Array:
+    """Errors of all closed-loop joints, ``(n_constraints,)``, from point poses."""
+    out = []
+    for c in linkage.closed_loops:
+        gA = g[linkage.tip_point(c.link_A)] @ c.g_A
+        gB = c.g_B if c.link_B == 0 else g[linkage.tip_point(c.link_B)] @ c.g_B
+        rel = _inv(gB) @ gA
+        if c.joint.kind == "U":
+            u, v = perpendicular_pair(np.asarray(c.joint.axis))
+            out.append(jnp.concatenate([(u @ rel[:3, :3] @ v)[None], rel[:3, 3]]))
+        else:
+            out.append(jnp.asarray(c.constrained_basis()).T @ log_se3(rel))
+    if not out:
+        return jnp.zeros((0,), g.dtype)
+    return jnp.concatenate(out)
+
+
+def closure_errors_from_data(linkage: Linkage, data: LinkageData, q) -> Array:
+    """``e(q)`` (forward pose pass only, no Jacobians)."""
+    return closure_errors_from_poses(linkage, poses_with_records(data, q)[0])
+
+
+def constraint_jacobian_from_data(linkage: Linkage, data: LinkageData, q) -> Array:
+    """``A = de/dq``, ``(n_constraints, n_dof)``."""
+    return jax.jacfwd(lambda q_: closure_errors_from_data(linkage, data, q_))(q)
+
+
+def constraint_terms(linkage: Linkage, data: LinkageData, q, qd):
+    """``(e, A, Adot qd)`` at ``(q, qd)``; ``Adot qd = d^2/ds^2 e(q + s qd)`` at 0."""
+
+    def e(q_):
+        return closure_errors_from_data(linkage, data, q_)
+
+    def Aqd(q_):
+        return jax.jvp(e, (q_,), (qd,))[1]
+
+    ev, A = e(q), jax.jacfwd(e)(q)
+    bias = jax.jvp(Aqd, (q,), (qd,))[1]
+    return ev, A, bias
+
+
+def numerical_rank(A, rtol: float = 1e-9) -> Array:
+    """Rank of ``A`` from its singular values above ``rtol`` times the largest."""
+    if A.shape[0] == 0:
+        return jnp.zeros((), dtype=int)
+    s = jnp.linalg.svd(A, compute_uv=False)
+    return jnp.sum(s > rtol * jnp.maximum(s[0], 1e-300))
+
+
+@eqx.filter_jit
+def closure_errors(linkage: Linkage, q: ArrayLike) -> Float[Array, " n_constraints"]:
+    """Closed-loop constraint errors e(q) (rad and m), joint by joint."""
+    q = _as_q(linkage, q)
+    return closure_errors_from_data(linkage, precompute(linkage), q)
+
+
+@eqx.filter_jit
+def constraint_jacobian(
+    linkage: Linkage, q: ArrayLike
+) -> Float[Array, "n_constraints n_dof"]:
+    """``A(q) = de/dq`` (redundant rows show in ``numerical_rank(A)``)."""
+    q = _as_q(linkage, q)
+    return constraint_jacobian_from_data(linkage, precompute(linkage), q)
