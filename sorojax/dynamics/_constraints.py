@@ -4,9 +4,14 @@ For a closed-loop joint between frame A (tip of link A times g_A) and frame B (t
 link B, or the world, times g_B) the relative pose is ``g = g_B^-1 g_A`` and the
 errors are ``Phi_p^T log(g)`` (DESIGN.md section 2), ``Phi_p`` the orthonormal
 complement of the joint's free directions: zero exactly when g lies in the joint's
-motion set ``exp(span Phi)`` (R, P, H, C, A, S, N). The universal joint's motions are
-products ``R_u(a) R_v(b)``, not exponentials of the span, so its errors are the exact
-``(u . R v, p)``: the two free axes stay perpendicular and the centres coincide.
+motion set ``exp(span Phi)`` (R, P, H, C, A, S, N). For the joints whose free
+directions split into rotations and translations along fixed axes (R, P, C, A, S, N)
+the cheaper ``(sin(theta) n, p)`` (skew part of R, and p) has the same zero set near
+assembly and the same first-order behaviour, and is used instead of the log (whose
+nested derivatives triple the compile time of the statics Newton). The universal
+joint's motions are products ``R_u(a) R_v(b)``, not exponentials of the span, so its
+errors are the exact ``(u . R v, p)``: the two free axes stay perpendicular and the
+centres coincide.
 A and Adot qd come from forward-mode autodiff of e (exact; no hand-derived terms).
 """
 
@@ -37,11 +42,17 @@ def closure_errors_from_poses(linkage: Linkage, g) -> Array:
         gA = g[linkage.tip_point(c.link_A)] @ c.g_A
         gB = c.g_B if c.link_B == 0 else g[linkage.tip_point(c.link_B)] @ c.g_B
         rel = _inv(gB) @ gA
+        R, p = rel[:3, :3], rel[:3, 3]
         if c.joint.kind == "U":
             u, v = perpendicular_pair(np.asarray(c.joint.axis))
-            out.append(jnp.concatenate([(u @ rel[:3, :3] @ v)[None], rel[:3, 3]]))
-        else:
+            out.append(jnp.concatenate([(u @ R @ v)[None], p]))
+        elif c.joint.kind == "H":
             out.append(jnp.asarray(c.constrained_basis()).T @ log_se3(rel))
+        else:
+            w = 0.5 * jnp.stack(
+                [R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]
+            )
+            out.append(jnp.asarray(c.constrained_basis()).T @ jnp.concatenate([w, p]))
     if not out:
         return jnp.zeros((0,), g.dtype)
     return jnp.concatenate(out)

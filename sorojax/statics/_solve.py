@@ -278,7 +278,7 @@ def solve_statics(
     sol = _solve_statics(
         linkage,
         q0,
-        u,
+        None if u is None else jnp.asarray(u, dtype=float),
         t=jnp.asarray(t, dtype=float),
         solver=solver,
         load_steps=load_steps,
