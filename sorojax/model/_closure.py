@@ -10,6 +10,7 @@ exact error ``(u^T R v, p)`` is used instead (``u, v`` its free axes).
 """
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
@@ -80,7 +81,15 @@ class ClosedLoopJoint(eqx.Module):
 
 
 def _complement(joint: Joint) -> np.ndarray:
-    Phi = np.asarray(joint.basis(), dtype=float)
+    try:
+        with jax.ensure_compile_time_eval():  # concrete even when built under jit
+            Phi = np.asarray(joint.basis(), dtype=float)
+    except jax.errors.ConcretizationTypeError as err:  # a traced helical pitch
+        raise ValueError(
+            "ClosedLoopJoint.joint: a helical closure needs a concrete pitch (its "
+            "constrained directions are fixed when the model is built); build the "
+            "ClosedLoopJoint outside jit/grad."
+        ) from err
     # Gram-Schmidt of the unit directions against the free ones: for axis-aligned
     # joints the rows are plain components (e.g. wx, wy, vx, vy, vz for R about z).
     Q = _orthonormal(Phi.T)
