@@ -252,6 +252,7 @@ def forward_dynamics(
     qd: ArrayLike,
     t: ArrayLike = 0.0,
     generalized_force: GeneralizedForce | None = None,
+    u: ArrayLike | None = None,
 ) -> Float[Array, " n_dof"]:
     """Generalised accelerations ``qdd`` at ``(q, qd, t)``.
 
@@ -261,10 +262,19 @@ def forward_dynamics(
         qd: velocities ``(n_dof,)``.
         t: time [s] (for time-varying loads).
         generalized_force: optional ``tau(t, q, qd)`` added to the right-hand side.
+        u: actuation inputs ``(n_inputs,)`` (default zeros). With prescribed
+            joints or closed loops the accelerations satisfy the constraint rows
+            (prescribed accelerations zero for a constant ``u``; Baumgarte terms
+            for the loops).
     """
     q, qd = _as_q(linkage, q), _as_q(linkage, qd, "qd")
     t = jnp.asarray(t, dtype=q.dtype)
-    return accelerations(linkage, precompute(linkage), t, q, qd, generalized_force)
+    data = precompute(linkage)
+    if not (linkage.actuators or linkage.closed_loops or linkage.custom_actuation):
+        return accelerations(linkage, data, t, q, qd, generalized_force)
+    u_ = as_inputs(linkage, u, q.dtype)
+    st = constrained_dynamics(linkage, data, t, q, qd, lambda _: u_, generalized_force)
+    return st.qdd
 
 
 @eqx.filter_jit
@@ -274,8 +284,29 @@ def equations_of_motion(
     qd: ArrayLike,
     t: ArrayLike = 0.0,
     generalized_force: GeneralizedForce | None = None,
+    u: ArrayLike | None = None,
 ) -> tuple[Float[Array, "n_dof n_dof"], Float[Array, " n_dof"]]:
-    """``(M, f)``: mass matrix and right side of ``M qdd = f`` at ``(q, qd, t)``."""
+    """``(M, f)``: mass matrix and right side of ``M qdd = f`` at ``(q, qd, t)``.
+
+    ``u``: actuation inputs (default: none applied); actuator forces are included
+    in ``f``, except prescribed joints' efforts and closed-loop forces, which are
+    multipliers (see :func:`constrained_dynamics`).
+    """
     q, qd = _as_q(linkage, q), _as_q(linkage, qd, "qd")
     t = jnp.asarray(t, dtype=q.dtype)
-    return mass_and_force(linkage, precompute(linkage), t, q, qd, generalized_force)
+    u_ = None if u is None else as_inputs(linkage, u, q.dtype)
+    return mass_and_force(linkage, precompute(linkage), t, q, qd, generalized_force, u_)
+
+
+def as_inputs(linkage: Linkage, u, dtype) -> Array:
+    """``u`` as an ``(n_inputs,)`` array (zeros if None), or a clear error."""
+    m = linkage.n_inputs
+    if u is None:
+        return jnp.zeros(m, dtype)
+    u = jnp.asarray(u, dtype=dtype).reshape(-1) if m else jnp.zeros(0, dtype)
+    if u.shape != (m,):
+        raise ValueError(
+            f"u has shape {u.shape}; this linkage has n_inputs = {m} (see "
+            "Linkage.input_slices): give one entry per input, in actuator order."
+        )
+    return u

@@ -28,6 +28,7 @@ from ..dynamics._constraints import (
     constraint_jacobian_from_data,
     numerical_rank,
 )
+from ..dynamics._eom import as_inputs
 from ..dynamics._external import external_force, external_force_recursive
 from ..dynamics._generalized import kinematics_from_data
 from ..kinematics._api import _as_q
@@ -98,7 +99,7 @@ def _solve_statics(
         raise ValueError(f"max_load_steps = {max_load_steps!r}: give an integer >= 1.")
     n = linkage.n_dof
     q0 = jnp.zeros(n) if q0 is None else _as_q(linkage, q0, "q0")
-    u = _as_u(linkage, u, q0.dtype)
+    u = as_inputs(linkage, u, q0.dtype)
     qi, ui = linkage.prescribed
     free = np.setdiff1d(np.arange(n), qi)
     n_c = linkage.n_constraints
@@ -206,19 +207,6 @@ def _solve_statics(
         constraint_error=jnp.max(jnp.abs(e), initial=0.0),
         constraint_rank=rank,
     )
-
-
-def _as_u(linkage: Linkage, u, dtype) -> Array:
-    m = linkage.n_inputs
-    if u is None:
-        return jnp.zeros(m, dtype)
-    u = jnp.asarray(u, dtype=dtype).reshape(-1) if m else jnp.zeros(0, dtype)
-    if u.shape != (m,):
-        raise ValueError(
-            f"u has shape {u.shape}; this linkage has n_inputs = {m} (see "
-            "Linkage.input_slices): give one entry per input, in actuator order."
-        )
-    return u
 
 
 def solve_statics(
