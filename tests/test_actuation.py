@@ -328,3 +328,46 @@ def test_bad_actuator_inputs_raise_clear_errors():
         sj.Linkage([sj.RigidLink()], actuators=[sj.JointActuator(1)])
     with pytest.raises(ValueError, match="ObliquePath.start"):
         sj.ObliquePath((0.0, 0.0, 0.0), (0.0, 0.0))
+
+
+def test_cable_through_two_links_and_chosen_divisions():
+    """One cable through two serial soft links (0.25 m each), and one spanning only
+    division 2 of a two-division rod.
+
+    Through both links: the same exact arc curvature T y / EI in both links (the
+    zero-length segment at the junction adds nothing). Division 2 only: division 1
+    stays straight (1e-12) and division 2 bends with T y / EI.
+    """
+    y, T = 0.005, 1.0
+
+    def half():
+        return sj.SoftLink(
+            sj.Division(
+                L_ROD / 2,
+                sj.CircularSection(R_ROD),
+                sj.LegendreBasis((0, 0, 1, 0, 0, 0), 0),
+            ),
+            sj.Material(E, POISSON),
+        )
+
+    path = sj.ConstantPath(y, 0.0)
+    two = sj.Linkage(
+        [half(), half()],
+        actuators=[sj.Cable([sj.CableSpan(1, path), sj.CableSpan(2, path)])],
+    )
+    sol = sj.solve_statics(two, u=[T])
+    xi = np.asarray(sj.screw_strains(two, sol.q))[two.layout.point_kind == 2]
+    np.testing.assert_allclose(xi[:, 2], T * y / EI, rtol=1e-10)
+
+    div = sj.Division(
+        L_ROD / 2, sj.CircularSection(R_ROD), sj.LegendreBasis((0, 0, 1, 0, 0, 0), 0)
+    )
+    one = sj.Linkage(
+        sj.SoftLink([div, div], sj.Material(E, POISSON)),
+        actuators=[sj.Cable(sj.CableSpan(1, path, divisions=(2, 2)))],
+    )
+    sol = sj.solve_statics(one, u=[T])
+    xi = np.asarray(sj.screw_strains(one, sol.q))
+    d = one.layout.point_division
+    assert np.abs(xi[d == 1, 2]).max() < 1e-12
+    np.testing.assert_allclose(xi[d == 2, 2], T * y / EI, rtol=1e-10)
