@@ -121,8 +121,13 @@ def _solve_statics(
             q = q.at[qi].set(q_p0 + lam * (u_[ui] - q_p0))
         return q, x[len(free) :]
 
+    # The linkage travels in the solver's args as its arrays only (cable paths and
+    # anchors get gradients); functions and structure stay static.
+    dyn, static = eqx.partition(linkage, eqx.is_array)
+
     def fn(x, args):
-        data_, lam, u_, linkage_ = args
+        data_, lam, u_, dyn_ = args
+        linkage_ = eqx.combine(dyn_, static)
         q, mu = full(x, lam, u_)
         r = equilibrium_residual(linkage_, data_, q, t, lam, u_, mu if closed else None)
         rows = [scale * r[free]]
@@ -142,10 +147,10 @@ def _solve_statics(
         )
 
     x0 = jnp.concatenate([q0[free], jnp.zeros(n_c, q0.dtype)])
-    args = (data, u, linkage)
+    args = (data, u, dyn)
     # Number of load increments: given, or from the size of the scaled residual.
     if load_steps is None:
-        r0 = fn(x0, (data, jnp.ones((), q0.dtype), u, linkage))
+        r0 = fn(x0, (data, jnp.ones((), q0.dtype), u, dyn))
         r0 = jax.lax.stop_gradient(jnp.where(jnp.isfinite(r0), r0, 0.0))
         n_inc = jnp.clip(
             jnp.ceil(jnp.max(jnp.abs(r0), initial=0.0) / load_increment),
