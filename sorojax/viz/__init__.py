@@ -3,7 +3,8 @@
 ``plot_configuration`` (alias ``plotq``) draws any configuration in 3D;
 ``plot_reference`` (alias ``plotq0``) draws q = 0 with the coordinate frames;
 ``animate`` (the manual's ``plotqqd``) writes a video of a trajectory and
-``plot_time_series`` plots its coordinates, tip position or energies against time.
+``plot_time_series`` plots its coordinates, tip position or energies against time;
+``plot_cables`` draws the cable routes over a configuration.
 """
 
 from ._animate import (
@@ -11,6 +12,12 @@ from ._animate import (
 )
 from ._animate import (
     plot_time_series as plot_time_series,
+)
+from ._cables import (
+    cable_polylines as cable_polylines,
+)
+from ._cables import (
+    plot_cables as plot_cables,
 )
 from ._plot import (
     plot_configuration as plot_configuration,
