@@ -6,12 +6,18 @@ import jax.numpy as jnp
 import numpy as np
 
 from .model import (
+    Cable,
+    CableAnchor,
+    CableSpan,
     CircularSection,
+    ClosedLoopJoint,
     Division,
     Joint,
+    JointActuator,
     LegendreBasis,
     Linkage,
     Material,
+    ObliquePath,
     PointWrench,
     RectangularSection,
     RigidLink,
@@ -117,3 +123,205 @@ def free_fall_q0(linkage: Linkage):
     from .kinematics import strain_coordinates
 
     return strain_coordinates(linkage, [0.0, 1.0, 0.0, 0.0, 0.0, 0.0])
+
+
+def rotation_z(angle: float) -> np.ndarray:
+    """Pose rotating by ``angle`` [rad] about z."""
+    c, s = math.cos(angle), math.sin(angle)
+    g = np.eye(4)
+    g[:2, :2] = [[c, -s], [s, c]]
+    return g
+
+
+def manual_hybrid(E: float = 2e7, eta: float = 1e4) -> Linkage:
+    """The SoRoSim manual's hybrid closed-chain example (section 3), five links.
+
+    Links 1 and 2 and all loads are the manual's: link 1 is a rigid 0.3 m bar (4 x 4
+    cm, rho 1000) on a revolute joint about z at the origin; link 2 is a soft rod on
+    link 1's tip, turned +15 degrees about y, with two divisions (0.3 m, radius 2 ->
+    1.5 cm, bending about y and z, linear strain; 0.2 m, radius 1.5 -> 1 cm, bending
+    about y and z, constant strain). Gravity along -y; a 5 N follower force along
+    local y at the end of division 2 of link 5; a fixed closed-loop joint between
+    the tips of links 4 and 5. Actuators (input ``u = (angle [rad], tension [N])``):
+    the revolute joint of link 1 by prescribed coordinate, and one cable (tension
+    > 0 pulls) on an oblique path, 12 -> 6 mm off the centre line along local y in
+    link 2, continuing 6 -> 4 mm through link 4.
+
+    The manual does not give links 3-5; here (our choice) they close a triangular
+    loop on the tip of link 2: link 3 is a rigid 0.15 m cross bar (2 x 2 cm, fixed
+    joint) along link 2's tip y axis; link 4 (soft, one division, linear strain)
+    starts at link 2's tip and link 5 (soft, two divisions with the orders of link
+    2) at link 3's tip; both are 1 cm radius rods aimed at the common point 0.2 m
+    ahead of the middle of the bar, so that their tips meet. The closed-loop frame
+    on link 4's tip is turned by ``-2 atan(0.075 / 0.2)`` about z, link 5's tip
+    orientation at q = 0, so q = 0 is assembled (straight rods; start solves there).
+    Links 2, 4 and 5 share the material: ``E`` [Pa] (default 20 MPa, stiffer than the
+    first-steps rod of :func:`demo_linkage` so that the 5 N force leaves a moderate
+    deflection), poisson 0.5, rho 1000, damping ``eta`` [Pa s]. 17 DoF, 6 constraint
+    rows.
+    """
+    bend = (0, 1, 1, 0, 0, 0)
+    material = Material(E=E, poisson=0.5, rho=1000.0, eta=eta)
+    link1 = RigidLink(
+        Joint("R", axis=(0.0, 0.0, 1.0)),
+        length=0.3,
+        section=RectangularSection(0.04, 0.04),
+        rho=1000.0,
+    )
+    link2 = SoftLink(
+        [
+            Division(0.3, CircularSection((0.02, 0.015)), LegendreBasis(bend, 1)),
+            Division(0.2, CircularSection((0.015, 0.01)), LegendreBasis(bend, 0)),
+        ],
+        material,
+        color="tab:orange",
+    )
+    bar, reach = 0.15, 0.2
+    side = math.hypot(reach, bar / 2)
+    angle = math.atan2(bar / 2, reach)
+    link3 = RigidLink(
+        Joint("N"), length=bar, section=RectangularSection(0.02, 0.02), rho=1000.0
+    )
+    link4 = SoftLink(
+        Division(side, CircularSection(0.01), LegendreBasis(bend, 1)),
+        material,
+        color="tab:green",
+    )
+    link5 = SoftLink(
+        [
+            Division(side / 2, CircularSection(0.01), LegendreBasis(bend, 1)),
+            Division(side / 2, CircularSection(0.01), LegendreBasis(bend, 0)),
+        ],
+        material,
+        color="tab:purple",
+    )
+    placements = np.stack(
+        [
+            np.eye(4),
+            rotation_y(math.radians(15)),
+            rotation_z(math.pi / 2),
+            rotation_z(angle),
+            rotation_z(-math.pi / 2 - angle),
+        ]
+    )
+    cable = Cable(
+        [
+            CableSpan(2, ObliquePath((0.012, 0.0), (0.006, 0.0))),
+            CableSpan(4, ObliquePath((0.006, 0.0), (0.004, 0.0))),
+        ],
+        name="cable",
+    )
+    return Linkage(
+        [link1, link2, link3, link4, link5],
+        parents=(0, 1, 2, 2, 3),
+        placements=jnp.asarray(placements),
+        gravity=(0.0, -9.81, 0.0),
+        point_wrenches=[
+            PointWrench(5, [0, 0, 0, 0, 5.0, 0], division=2, X1=1.0, follower=True)
+        ],
+        actuators=[JointActuator(1, prescribed=True), cable],
+        closed_loops=[
+            ClosedLoopJoint("N", link_A=5, link_B=4, g_B=rotation_z(-2 * angle))
+        ],
+    )
+
+
+def gripper_finger(
+    E: float = 1e6,
+    phalanges=(0.045, 0.03, 0.025),
+    hinge_length: float = 0.01,
+    cable_offset: float = 0.008,
+    gravity=(0.0, -9.81, 0.0),
+) -> Linkage:
+    """A tendon-driven finger: rigid phalanges joined by short soft hinges.
+
+    Along x from the origin: hinge, phalanx, hinge, phalanx, hinge, phalanx (links 1..6,
+    soft and rigid alternating, all fixed joints). Each hinge is a ``hinge_length``
+    soft rod of 4 x 15 mm rectangular section (E ``E`` [Pa], poisson 0.5, rho 1100)
+    bending about z with constant strain (1 DoF; 3 in all); the phalanges are
+    ``phalanges`` [m] long, 12 x 15 mm, rho 1100. One tendon (input: tension [N],
+    > 0 pulls) runs outside the body on the palm side (local -y): from a ground
+    pulley at (-5 mm, -``cable_offset``, 0) through two eyelets per phalanx, 3 mm in
+    from each end at ``cable_offset`` below its axis, ending at the last eyelet.
+    Pulling shortens the segments across the hinges and curls the finger toward -y.
+    Gravity along -y by default (palm down).
+    """
+    material = Material(E=E, poisson=0.5, rho=1100.0)
+    links: list = []
+    route: list = [CableAnchor(0, (-0.005, -cable_offset, 0.0))]
+    for length in phalanges:
+        links.append(
+            SoftLink(
+                Division(
+                    hinge_length,
+                    RectangularSection(0.004, 0.015),
+                    LegendreBasis((0, 0, 1, 0, 0, 0), 0),
+                ),
+                material,
+                color="tab:orange",
+            )
+        )
+        links.append(
+            RigidLink(
+                Joint("N"),
+                length=length,
+                section=RectangularSection(0.012, 0.015),
+                rho=1100.0,
+            )
+        )
+        half = length / 2 - 0.003
+        for x in (-half, half):  # eyelets, in the phalanx's CM frame
+            route.append(CableAnchor(len(links), (x, -cable_offset, 0.0)))
+    return Linkage(links, gravity=gravity, actuators=[Cable(route, name="tendon")])
+
+
+def finger_curl(linkage: Linkage, q) -> float:
+    """Curl of :func:`gripper_finger` [rad]: rotation of the fingertip about -z."""
+    from .kinematics import tip_pose
+
+    g = np.asarray(tip_pose(linkage, q))
+    return -math.atan2(g[1, 0], g[0, 0])
+
+
+def l_beam(
+    order: int = 3,
+    load: float = 2000.0,
+    length: float = 1.0,
+    radius: float = 0.01,
+    E: float = 200e9,
+    poisson: float = 0.3,
+    rho: float = 7850.0,
+    gravity=(0.0, 0.0, 0.0),
+) -> Linkage:
+    """An L-shaped beam clamped at both ends, loaded at the corner (our setup).
+
+    Two equal arms of ``length`` [m], solid circular section of ``radius`` [m],
+    material ``E`` [Pa], ``poisson``, ``rho`` (default steel); both bend about y and z
+    and twist (inextensible, unshearable: Kirchhoff rods, Legendre ``order``). Arm 1
+    runs along x from the clamp at the origin to the corner at (L, 0, 0); arm 2 is
+    fixed to arm 1's tip turned 90 degrees about z and runs along y to (L, L, 0),
+    where a fixed closed-loop joint ('N') clamps its tip to the ground. A world-frame
+    force of ``load`` [N] along -z (out of the plane of the L) acts at the corner.
+    The SoRoSim papers' L-beam (12.98 cm GVS vs 13.27 cm ANSYS) is not specified in
+    the sources at hand; this is a setup of our own of the same kind (see
+    ``examples/l_beam.py``).
+    """
+    modes = (1, 1, 1, 0, 0, 0)
+    material = Material(E=E, poisson=poisson, rho=rho)
+    arms = [
+        SoftLink(
+            Division(length, CircularSection(radius), LegendreBasis(modes, order)),
+            material,
+            color=color,
+        )
+        for color in ("tab:blue", "tab:orange")
+    ]
+    g_clamp = rotation_z(math.pi / 2)
+    g_clamp[:2, 3] = [length, length]
+    return Linkage(
+        arms,
+        placements=jnp.asarray(np.stack([np.eye(4), rotation_z(math.pi / 2)])),
+        gravity=gravity,
+        point_wrenches=[PointWrench(1, [0.0, 0.0, 0.0, 0.0, 0.0, -load])],
+        closed_loops=[ClosedLoopJoint("N", link_A=2, link_B=0, g_B=g_clamp)],
+    )
