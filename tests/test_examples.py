@@ -98,3 +98,130 @@ def test_cantilever_sweep_matches_elliptic_integrals(tmp_path):
     linear = ex.L**3 / (3 * ex.EI)
     assert abs(dy[0] / linear - 1) < 0.1, f"dy/dP {dy[0]:.4f} vs linear {linear:.4f}"
     assert (tmp_path / "cantilever_sweep.png").stat().st_size > 10_000
+
+
+def test_l_beam_matches_linear_frame_theory_and_symmetry(tmp_path):
+    """examples/l_beam.py at order 1: closure, clamp reaction and the linear limit.
+
+    References: (1) at 1e-4 of the load the corner deflection equals the linear
+    Euler-Bernoulli frame solution (two frame elements, exact for a corner load): the
+    bending moment is linear and the twist constant along each arm, so order 1
+    represents them exactly; the geometric nonlinearity there is ~(w/L)^2 ~ 1e-10 and
+    Newton stops at ~1e-10: tolerance 1e-6 relative. (2) The L is symmetric about the
+    vertical plane through the corner at 45 degrees, so each clamp carries half the
+    load: the far clamp's vertical force (the multiplier of the z position row, in a
+    frame turned about z) is P / 2 within 1e-8 relative. (3) The fixed closure holds
+    to 1e-10 m / rad (Newton tolerance).
+    """
+    ex = _load("l_beam")
+    results, ratio = ex.main(["--orders", "1", "--out", str(tmp_path)])
+    assert abs(ratio - 1) < 1e-6, f"small-load deflection / linear = {ratio:.10f}"
+    sol = results[1]["sol"]
+    assert sol.result == sj.RESULTS.successful
+    assert float(sol.constraint_error) < 1e-10, f"closure {sol.constraint_error}"
+    assert int(sol.constraint_rank) == 6
+    fz = float(sol.lam[5])
+    assert abs(fz / 1000.0 - 1) < 1e-8, f"far clamp force z {fz} N, expected 1000"
+    # Large deflection: geometric stiffening (the inextensible arms pull), so the
+    # response is below the linear one, by a few per cent at w/L ~ 0.14.
+    w_lin = abs(ex.linear_corner_response(2000.0)[0])
+    dmax = results[1]["max_deflection"]
+    assert 0.9 * w_lin < dmax < w_lin, f"max deflection {dmax} vs linear {w_lin}"
+    assert (tmp_path / "l_beam.png").stat().st_size > 10_000
+
+
+@pytest.mark.slow
+def test_l_beam_deflection_converges_with_order(tmp_path):
+    """examples/l_beam.py at orders 1-3 (2 kN, w/L ~ 0.14): the maximum deflection.
+
+    Reference: Cauchy convergence. Order 1 is already within 1e-3 of order 3 (the
+    curvature is nearly linear); the change from order 2 to 3 must be smaller than
+    from 1 to 2 and below 1e-5 relative (measured: 13.896, 13.9037, 13.9038 cm).
+    """
+    ex = _load("l_beam")
+    results, _ = ex.main(["--orders", "1", "2", "3", "--out", str(tmp_path)])
+    d = [results[k]["max_deflection"] for k in (1, 2, 3)]
+    assert abs(d[0] / d[2] - 1) < 1e-3, f"max deflections {d}"
+    assert abs(d[2] - d[1]) < abs(d[1] - d[0]), f"max deflections {d}"
+    assert abs(d[2] / d[1] - 1) < 1e-5, f"max deflections {d}"
+
+
+def test_gripper_finger_curls_monotonically_and_balances(tmp_path):
+    """examples/gripper_finger.py over 5 tensions 0..8 N.
+
+    References: (1) the curl increases strictly with the tension. (2) Equilibrium by
+    virtual work, independent of the solver's autodiff: K q = F(q) - T dl/dq with
+    dl/dq by central differences of the tendon length (step 1e-6: truncation ~1e-12,
+    rounding ~1e-10 relative to T dl/dq ~ 0.06 N m); tolerance 1e-6 of |K q|.
+    """
+    ex = _load("gripper_finger")
+    tensions, qs, curls = ex.main(["--n", "5", "--out", str(tmp_path)])
+    assert np.all(np.diff(curls) > 0), f"curl [deg] {np.degrees(curls)}"
+    assert np.degrees(curls[-1]) > 90, "8 N should curl the finger past 90 deg"
+    finger = ex.gripper_finger()
+    K = np.asarray(sj.stiffness_matrix(finger))
+    for T, q in zip(tensions, qs, strict=True):
+        h = 1e-6
+        dl = np.array(
+            [
+                (
+                    float(sj.cable_lengths(finger, q + h * e)[0])
+                    - float(sj.cable_lengths(finger, q - h * e)[0])
+                )
+                / (2 * h)
+                for e in np.eye(len(q))
+            ]
+        )
+        F = np.asarray(sj.generalized_external_force(finger, q))
+        r = K @ q - F + T * dl
+        scale = np.abs(K @ q).max()
+        assert np.abs(r).max() < 1e-6 * scale, f"T = {T}: residual {r}"
+    # The drawn tendon (sorojax.viz.cable_polylines) is the modelled one: for a chain
+    # of anchors its polyline length is the cable length (to rounding).
+    from sorojax.viz import cable_polylines
+
+    ((name, pts),) = cable_polylines(finger, qs[-1])
+    drawn = np.linalg.norm(np.diff(pts, axis=0), axis=1).sum()
+    length = float(sj.cable_lengths(finger, qs[-1])[0])
+    assert name == "tendon" and abs(drawn - length) < 1e-12, f"{drawn} vs {length}"
+    assert (tmp_path / "gripper_finger.png").stat().st_size > 10_000
+
+
+@pytest.mark.slow
+def test_manual_hybrid_statics_and_dynamics(tmp_path):
+    """examples/manual_hybrid.py: closed-loop statics (-pi/4, 50 N) and 0.2 s of motion.
+
+    References: (1) the fixed loop closes to 1e-10 with full rank 6. (2) Moment
+    balance about the revolute axis: the cable and the loop are internal to the
+    links beyond the joint, so the solved torque equals dV_g/dtheta (central
+    differences of the gravitational energy, step 1e-5: error ~1e-10) minus the
+    moment (p x f)_z of the 5 N follower force about the z axis through the
+    origin; tolerance 1e-7 N m. (3) In dynamics the revolute follows pi t / 2
+    exactly and the Baumgarte-stabilised loop stays closed within 1e-6.
+    """
+    ex = _load("manual_hybrid")
+    sol, traj = ex.main(["--t1", "0.2", "--out", str(tmp_path)])
+    lk = ex.manual_hybrid()
+    assert sol.result == sj.RESULTS.successful
+    assert float(sol.constraint_error) < 1e-10
+    assert int(sol.constraint_rank) == 6
+    q = np.asarray(sol.q)
+    assert abs(q[0] - ex.ANGLE) < 1e-12
+    h = 1e-5
+    e0 = np.eye(len(q))[0]
+    dV = (
+        float(sj.gravitational_energy(lk, q + h * e0))
+        - float(sj.gravitational_energy(lk, q - h * e0))
+    ) / (2 * h)
+    pw = lk.point_wrenches[0]
+    g = np.asarray(sj.forward_kinematics(lk, q))[lk.point_index(pw)]
+    f = g[:3, :3] @ np.asarray(pw.wrench)[3:]
+    expected = dV - np.cross(g[:3, 3], f)[2]
+    torque = float(sol.efforts[0])
+    assert abs(torque - expected) < 1e-7, f"torque {torque} vs balance {expected}"
+    assert traj.result == sj.RESULTS.successful
+    t = np.asarray(traj.t)
+    assert np.allclose(np.asarray(traj.q)[:, 0], np.pi * t / 2, atol=1e-10)
+    err = np.asarray(jax.vmap(lambda qq: sj.closure_errors(lk, qq))(traj.q))
+    assert np.abs(err).max() < 1e-6, f"closure error {np.abs(err).max()}"
+    assert (tmp_path / "manual_hybrid.png").stat().st_size > 10_000
