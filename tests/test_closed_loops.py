@@ -249,3 +249,12 @@ def test_universal_closure_holds_for_a_cardan_pair_of_rotations():
         assert float(jnp.abs(e).max()) < 1e-15
         e = sj.closure_errors(lk, jnp.array([a, b, 0.05]))
         assert float(jnp.abs(e).max()) > 1e-3
+
+
+def test_large_prescribed_jump_is_load_stepped(four_bar):
+    """From the assembly at 0 to a prescribed crank angle of 1.5 rad in one call: the
+    automatic schedule counts the prescribed jump (one full-size Newton step from so
+    far diverges), and lands on the analytic assembly (1e-10)."""
+    sol = sj.solve_statics(four_bar, assemble(0.0), u=[1.5])
+    assert sol.result == sj.RESULTS.successful
+    np.testing.assert_allclose(np.asarray(sol.q), assemble(1.5), atol=1e-10)

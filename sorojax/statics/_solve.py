@@ -152,11 +152,11 @@ def _solve_statics(
     if load_steps is None:
         r0 = fn(x0, (data, jnp.ones((), q0.dtype), u, dyn))
         r0 = jax.lax.stop_gradient(jnp.where(jnp.isfinite(r0), r0, 0.0))
-        n_inc = jnp.clip(
-            jnp.ceil(jnp.max(jnp.abs(r0), initial=0.0) / load_increment),
-            1,
-            max_load_steps,
-        )
+        size = jnp.max(jnp.abs(r0), initial=0.0) / load_increment
+        if len(qi):  # prescribed jumps move whole mechanisms: a quarter increment
+            jump = jax.lax.stop_gradient(jnp.abs(u[ui] - q_p0))
+            size = jnp.maximum(size, 4.0 * jnp.max(jump) / load_increment)
+        n_inc = jnp.clip(jnp.ceil(size), 1, max_load_steps)
     else:
         n_inc = jnp.asarray(load_steps, dtype=q0.dtype)
 
@@ -247,8 +247,9 @@ def solve_statics(
         load_steps: number of equal load increments; ``None`` (default) chooses it
             from the size of the Jacobi-scaled residual at ``q0`` (about the linear
             estimate of the largest coordinate change, e.g. a rotation in rad), so
-            that each increment moves the coordinates by about ``load_increment``,
-            capped at ``max_load_steps``.
+            that each increment moves the coordinates by about ``load_increment``
+            (prescribed coordinates by a quarter of it), capped at
+            ``max_load_steps``.
         max_load_steps: cap of the automatic schedule.
         load_increment: target coordinate change per automatic increment.
         max_steps: maximum iterations per load step.
