@@ -146,6 +146,7 @@ def test_l_beam_deflection_converges_with_order(tmp_path):
     assert abs(d[2] / d[1] - 1) < 1e-5, f"max deflections {d}"
 
 
+@pytest.mark.slow  # ~40 s; external cables: tests/test_actuation.py (default run)
 def test_gripper_finger_curls_monotonically_and_balances(tmp_path):
     """examples/gripper_finger.py over 5 tensions 0..8 N.
 

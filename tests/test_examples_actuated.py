@@ -110,6 +110,7 @@ def slider_crank_torque(theta, omega):
 
 
 # --------------------------------------------------------------------- tests
+@pytest.mark.slow  # tests/test_closed_loops.py checks the same in the default run
 def test_four_bar_statics_crank_torque_is_virtual_work(tmp_path):
     """examples/mechanisms.py --only four_bar --statics-only at 4 crank angles.
 
