@@ -7,6 +7,7 @@ between runs on the same machine. The statics entry point keeps host callbacks
 out of its compiled core so that it can be cached.
 """
 
+import gc
 import os
 import pathlib
 
@@ -31,3 +32,18 @@ jax.config.update("jax_persistent_cache_min_entry_size_bytes", -1)
 def key():
     """A fixed PRNG key."""
     return jax.random.PRNGKey(0)
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _release_compiled_programs():
+    """Drop JAX's in-memory compiled programs after each test module.
+
+    Long single-process runs that compile hundreds of large programs (closed-loop
+    statics, dynamics) crashed inside XLA's compiler (segmentation fault) on the
+    2-core machine; releasing them per module (the persistent cache still serves
+    repeats) and splitting the files over two pytest-xdist workers (``-n 2 --dist
+    loadfile`` in pyproject.toml) keeps each process small.
+    """
+    yield
+    jax.clear_caches()
+    gc.collect()
