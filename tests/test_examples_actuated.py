@@ -12,9 +12,7 @@ The first run compiles closed-loop statics (~30 s per mechanism) and dynamics
 (~40 s) on a 2-core CPU; the long cases are marked ``slow``.
 """
 
-import importlib.util
 import math
-import pathlib
 
 import jax
 import jax.numpy as jnp
@@ -22,25 +20,18 @@ import matplotlib
 import numpy as np
 import pytest
 from scipy.optimize import newton
+from test_examples import _load  # one loader for the example scripts
 
 import sorojax as sj
 
 matplotlib.use("Agg")
 
-EXAMPLES = pathlib.Path(__file__).resolve().parent.parent / "examples"
 
 G = 9.81
 RHO, W = 1000.0, 0.02  # bar density [kg/m^3] and square section side [m]
 # Geometry restated from the builders' documentation (sorojax/_mechanisms.py).
 A_CR, B_CO, C_RO, D_GR = 0.1, 0.4, 0.3, 0.35  # four-bar: crank, coupler, rocker, ground
 R_SC, L_SC, W_SL = 0.1, 0.3, 0.08  # slider-crank: crank, rod, slider block
-
-
-def _load(name):
-    spec = importlib.util.spec_from_file_location(name, EXAMPLES / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def _mass(length):
