@@ -148,6 +148,8 @@ class ConstrainedState(eqx.Module):
         u: inputs after the actuator-strength hook.
         efforts: efforts of the prescribed coordinates (multipliers of their rows).
         lam: closed-loop multipliers.
+        M: the mass matrix at (q, qd) (the stiff part's matrices for
+            :class:`sorojax.integrate.RosenbrockW`).
     """
 
     qd: Array
@@ -155,6 +157,7 @@ class ConstrainedState(eqx.Module):
     u: Array
     efforts: Array
     lam: Array
+    M: Array
 
 
 def constrained_dynamics(
@@ -206,7 +209,7 @@ def constrained_dynamics(
         qdd = spd_solve(M, f)
     u_eff = effective_inputs(linkage, t, q, qd, lambda: _kin(data, q, qd), u)
     return ConstrainedState(
-        qd=qd, qdd=qdd, u=u_eff, efforts=mu[: len(qi)], lam=mu[len(qi) :]
+        qd=qd, qdd=qdd, u=u_eff, efforts=mu[: len(qi)], lam=mu[len(qi) :], M=M
     )
 
 

@@ -27,7 +27,11 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
 from ..kinematics._api import _as_q
-from ..kinematics._recursion import jacobians_dot, poses_and_jacobians
+from ..kinematics._recursion import (
+    jacobians_dot,
+    kinematics_and_rates,
+    poses_and_jacobians,
+)
 from ..lie import ad
 from ..model._linkage import Linkage
 from ..model._precompute import LinkageData, precompute
@@ -52,19 +56,14 @@ def _gyroscopic(Mw, eta, etadot_v):
 
 
 def kinematics_with_rates(data: LinkageData, q, qd):
-    """``(g, J, eta, Jdot qd)`` at every point.
+    """``(g, J, eta, Jdot qd)`` at every point, in one kinematic pass.
 
-    J comes from one Jacobian pass; the twists ``J qd`` from the same recursion
-    restricted to the column ``qd`` (O(points) instead of O(points n_dof)), and their
-    velocity-product rates ``Jdot qd`` as its forward-mode derivative along ``qd``.
+    J from the Jacobian recursion, ``eta = J qd``, and the velocity-product rates
+    ``Jdot qd`` from the same prefix sums differentiated in time
+    (:func:`sorojax.kinematics._recursion.kinematics_and_rates`), without forming
+    Jdot or differentiating the whole recursion.
     """
-    g, J = poses_and_jacobians(data, q)
-
-    def twists(q_):
-        return poses_and_jacobians(data, q_, qd[:, None])[1][..., 0]
-
-    eta, etadot_v = jax.jvp(twists, (q,), (qd,))
-    return g, J, eta, etadot_v
+    return kinematics_and_rates(data, q, qd)
 
 
 def _twists_from_poses(data: LinkageData, q, qd):

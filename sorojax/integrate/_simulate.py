@@ -23,14 +23,16 @@ from .._results import RESULTS
 from ..dynamics._eom import (
     GeneralizedForce,
     InputFunction,
-    accelerations,
     consistent_velocities,
     constrained_dynamics,
+    mass_and_force,
     prescribed_motion,
+    spd_solve,
 )
 from ..kinematics._api import _as_q
 from ..model._linkage import Linkage
 from ..model._precompute import precompute
+from ._rosenbrock import MechanicalTerm, RosenbrockW
 from ._trajectory import Trajectory
 
 try:  # diffrax's marker for "take the tolerance from the step-size controller"
@@ -46,22 +48,40 @@ SOLVERS: dict[str, Callable[[], diffrax.AbstractSolver]] = {
     "kvaerno4": diffrax.Kvaerno4,
     "kvaerno5": diffrax.Kvaerno5,
     "implicit_euler": diffrax.ImplicitEuler,
+    "ros34pw2": RosenbrockW,
 }
 """Solvers selectable by name; any ``diffrax.AbstractSolver`` instance is also taken."""
 
 DEFAULT_SOLVER = "auto"
-"""``"auto"``: Tsit5 unless the linearised model is stiff over the span, then Kvaerno5.
+"""``"auto"``: ROS34PW2 on damped stiff models, Tsit5 otherwise (Kvaerno5 if very stiff).
 
-Chosen from ``benchmarks/dynamics.py``: on soft rods (the free-fall rod, damped or not)
-the explicit Tsit5 reaches a given tip error 3-15x faster than the implicit solvers,
-whose autodiff Jacobian and Newton iterations cost more than the extra explicit steps;
-on stiff rods (steel) explicit methods need steps below 2.8 / |lambda_max| and the
-implicit Kvaerno5 wins. ``"auto"`` estimates |lambda_max| of the linearisation
-``[[0, I], [-M^-1 K, -M^-1 D]]`` at ``q0`` and picks Kvaerno5 when an explicit solver
-would need more than ``AUTO_STIFF_STEPS`` steps over ``[t0, t1]``.
+Chosen from ``benchmarks/dynamics.py`` (work-precision and stability parts). Soft rods
+with material damping have strongly damped fast modes (eigenvalues of the
+linearisation ``[[0, I], [-M^-1 K, -M^-1 D]]`` far out on the negative real axis):
+they bound an explicit solver's step (``h < 2.8 / |lambda|`` for Tsit5) but not the
+motion, and the Rosenbrock-W solver ``"ros34pw2"`` (:class:`RosenbrockW`, linearly
+implicit in K and D) steps over them: 5 s of the damped free-fall rod take 0.12 s at
+rtol 1e-3 (tip error 5e-5 L) against 0.46 s for Tsit5, 0.11 s vs 0.94 s for 1 s of a
+3D motion. When the fastest modes are undamped oscillations (no damping, or a stiff
+steel rod whose motion *is* its vibration), they must be resolved anyway and the
+explicit Tsit5 is cheaper. ``"auto"`` computes the eigenvalues at ``q0`` (on the
+host, once per call) and picks
+
+* ``"ros34pw2"`` when an explicit solver would need more than ``AUTO_STIFF_STEPS``
+  steps over ``[t0, t1]``, the fastest eigenvalue is mostly real (damped:
+  ``-Re lambda > |Im lambda|``) and ``rtol >= AUTO_MIN_RTOL`` (an order-3 method loses
+  to high-order explicit ones at very tight tolerances);
+* else ``"kvaerno5"`` when an explicit solver would need more than
+  ``AUTO_VERY_STIFF_STEPS`` steps;
+* else ``"tsit5"``.
+
+Under an outer jit/vmap/grad with traced parameters no host analysis is possible and
+``"auto"`` means ``"tsit5"``: name the solver there.
 """
 
-AUTO_STIFF_STEPS = 20_000
+AUTO_STIFF_STEPS = 1_000
+AUTO_VERY_STIFF_STEPS = 20_000
+AUTO_MIN_RTOL = 1e-6
 
 
 @eqx.filter_jit
@@ -73,27 +93,41 @@ def _linear_terms(linkage: Linkage, q0):
     return _mass_from_J(data, poses_and_jacobians(data, q0)[1]), data.K, data.D
 
 
+def _eigenvalues(linkage: Linkage, q0) -> np.ndarray:
+    """Eigenvalues of the linearised state matrix at ``q0`` (at rest)."""
+    M, K, D = (np.asarray(a) for a in _linear_terms(linkage, q0))
+    n = M.shape[0]
+    if not n:
+        return np.zeros(0, complex)
+    MK, MD = np.linalg.solve(M, K), np.linalg.solve(M, D)
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-MK, -MD]])
+    return np.linalg.eigvals(A)
+
+
 def stiffness_estimate(linkage: Linkage, q0) -> float:
     """Largest |eigenvalue| [1/s] of the linearised state matrix at ``q0`` (at rest).
 
     The explicit solvers' stable step is about ``2.8 / stiffness_estimate`` (Tsit5).
     """
-    M, K, D = (np.asarray(a) for a in _linear_terms(linkage, q0))
-    n = M.shape[0]
-    MK, MD = np.linalg.solve(M, K), np.linalg.solve(M, D)
-    A = np.block([[np.zeros((n, n)), np.eye(n)], [-MK, -MD]])
-    return float(np.abs(np.linalg.eigvals(A)).max()) if n else 0.0
+    lam = _eigenvalues(linkage, q0)
+    return float(np.abs(lam).max()) if lam.size else 0.0
 
 
-def _choose_solver(solver, linkage, q0, t0, t1):
+def _choose_solver(solver, linkage, q0, t0, t1, rtol):
     if not (isinstance(solver, str) and solver.lower() == "auto"):
         return solver
     leaves = jax.tree.leaves(eqx.filter((linkage, q0, t0, t1), eqx.is_array))
     if any(isinstance(x, jax.core.Tracer) for x in leaves):
         return "tsit5"  # traced model: no host-side analysis (documented)
-    lam = stiffness_estimate(linkage, q0)
-    n_explicit = abs(float(t1) - float(t0)) * lam / 2.8
-    return "kvaerno5" if n_explicit > AUTO_STIFF_STEPS else "tsit5"
+    lam = _eigenvalues(linkage, q0)
+    if not lam.size:
+        return "tsit5"
+    fastest = lam[np.argmax(np.abs(lam))]
+    n_explicit = abs(float(t1) - float(t0)) * abs(fastest) / 2.8
+    damped = -fastest.real > abs(fastest.imag)
+    if n_explicit > AUTO_STIFF_STEPS and damped and rtol >= AUTO_MIN_RTOL:
+        return "ros34pw2"
+    return "kvaerno5" if n_explicit > AUTO_VERY_STIFF_STEPS else "tsit5"
 
 
 def _make_solver(solver) -> diffrax.AbstractSolver:
@@ -144,20 +178,23 @@ def _input_function(u_fn, u_const) -> InputFunction:
     return lambda t: jnp.asarray(u_fn(t), dtype=u_const.dtype).reshape(u_const.shape)
 
 
-def _vector_field(linkage: Linkage, generalized_force, u_fn):
+def _vector_field(linkage: Linkage, generalized_force, u_fn) -> MechanicalTerm:
+    """The dynamics as a diffrax term: ``(qd, qdd)`` and the stiff part (M, K, D)."""
+
     def field(t, y, args):
         data, u_const = args
         n = y.shape[0] // 2
         q, qd = y[:n], y[n:]
         if not _needs_inputs(linkage):
-            qdd = accelerations(linkage, data, t, q, qd, generalized_force)
-            return jnp.concatenate([qd, qdd])
+            M, f = mass_and_force(linkage, data, t, q, qd, generalized_force)
+            ydot = jnp.concatenate([qd, spd_solve(M, f)])
+            return ydot, (M, data.K, data.D)
         st = constrained_dynamics(
             linkage, data, t, q, qd, _input_function(u_fn, u_const), generalized_force
         )
-        return jnp.concatenate([st.qd, st.qdd])
+        return jnp.concatenate([st.qd, st.qdd]), (st.M, data.K, data.D)
 
-    return field
+    return MechanicalTerm(field)
 
 
 def _result_code(sol: diffrax.Solution) -> RESULTS:
@@ -194,7 +231,7 @@ def _simulate(
         )
         y0 = jnp.concatenate([y0[:n], qd0])
     sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(_vector_field(linkage, generalized_force, u_fn)),
+        _vector_field(linkage, generalized_force, u_fn),
         solver,
         t0,
         t1,
@@ -242,8 +279,8 @@ def simulate(
     ts: ArrayLike | None = None,
     n_save: int = 101,
     solver: str | diffrax.AbstractSolver = DEFAULT_SOLVER,
-    rtol: float = 1e-6,
-    atol: float = 1e-8,
+    rtol: float = 1e-3,
+    atol: float = 1e-5,
     dt0: float | None = None,
     adaptive: bool = True,
     max_steps: int = 16384,
@@ -264,11 +301,15 @@ def simulate(
         ts: save times (increasing, within ``[t0, t1]``); default ``n_save`` evenly
             spaced times from ``t0`` to ``t1``.
         n_save: number of save times when ``ts`` is not given.
-        solver: ``"auto"`` (default: Tsit5, or Kvaerno5 when the linearised model at
-            ``q0`` is stiff over the span; see ``DEFAULT_SOLVER``; under an outer
-            jit/vmap/grad with traced parameters ``"auto"`` means Tsit5), a name in
+        solver: ``"auto"`` (default: the Rosenbrock-W ``"ros34pw2"`` when the
+            linearised model at ``q0`` has fast damped modes, else Tsit5, or Kvaerno5
+            when very stiff; see ``DEFAULT_SOLVER``; under an outer jit/vmap/grad
+            with traced parameters ``"auto"`` means Tsit5), a name in
             ``sorojax.integrate.SOLVERS`` or any ``diffrax.AbstractSolver``.
-        rtol: relative tolerance of the adaptive step-size controller.
+        rtol: relative tolerance of the adaptive step-size controller (default 1e-3,
+            as MATLAB's ode15s in SoRoSim: on the free-fall rod the tip error is then
+            ~5e-5 L, far below the error of a cubic strain basis; tighten it, and
+            name an explicit solver such as ``"dopri8"``, for reference solutions).
         atol: absolute tolerance (states are ``q`` [-, or m / rad for joints] and
             ``qd`` [1/s]).
         dt0: initial step [s]; chosen automatically when adaptive and ``None``.
@@ -326,9 +367,9 @@ def simulate(
                 )
     if max_steps < 1:
         raise ValueError(f"max_steps = {max_steps}; give a positive integer.")
-    solver_ = _make_solver(_choose_solver(solver, linkage, q0, t0_, t1_))
+    solver_ = _make_solver(_choose_solver(solver, linkage, q0, t0_, t1_, rtol))
     if adaptive:
-        if isinstance(solver_, diffrax.AbstractImplicitSolver):
+        if isinstance(solver_, diffrax.AbstractImplicitSolver | RosenbrockW):
             # PI control: the plain I controller makes implicit solvers on damped
             # rods alternate accept/reject (measured: 320 steps, 149 rejected vs
             # 117 steps, 15 rejected for Kvaerno5 over 0.5 s of the free-fall rod).

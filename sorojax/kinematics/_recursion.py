@@ -28,10 +28,23 @@ from ._step import Ad_inv_Rp, exp_and_tangent, pose
 _C = math.sqrt(3.0) / 12.0
 
 
-def _joint_step(g, J, Phi, q_j, V_j):
-    R, p, T = exp_and_tangent(Phi @ q_j)
+def _joint_step(g, J, Phi, q_j, V_j, rates=None):
+    """One lumped-joint step; ``rates = (eta, etadot_v, qd_j)`` also carries the
+    twist and its velocity-product rate (see :func:`_division_scan`)."""
+    Omega = Phi @ q_j
+    if rates is None:
+        R, p, T = exp_and_tangent(Omega)
+        J = J + T @ (Phi @ V_j)
+        return g @ pose(R, p), Ad_inv_Rp(R, p) @ J, None
+    eta, etadot, qd_j = rates
+    Od = Phi @ qd_j
+    (R, p, T), (_, _, Td) = jax.jvp(exp_and_tangent, (Omega,), (Od,))
     J = J + T @ (Phi @ V_j)
-    return g @ pose(R, p), Ad_inv_Rp(R, p) @ J
+    Ai = Ad_inv_Rp(R, p)
+    y = Ai @ (T @ Od)
+    eta1 = Ai @ eta + y
+    etadot1 = Ai @ (etadot + Td @ Od) + ad(eta1) @ y
+    return g @ pose(R, p), Ai @ J, (eta1, etadot1)
 
 
 def magnus_omega(h, P, r, q_d):
@@ -66,7 +79,7 @@ def _prefix_poses(E):
     return jnp.concatenate([eye, G])
 
 
-def _division_scan(g0, J0, dd: DivisionData, q, V):
+def _division_scan(g0, J0, dd: DivisionData, q, V, rates=None):
     """Poses and Jacobians at every point of one division (first point included).
 
     Vectorised over the division's steps: every Magnus twist depends on q alone, so
@@ -78,6 +91,20 @@ def _division_scan(g0, J0, dd: DivisionData, q, V):
 
     with G_a the pose of point a relative to the first point. ``J`` here is the
     Jacobian times the column block ``V`` (identity: the Jacobian; ``qd``: twists).
+
+    With ``rates = (eta_0, etadot_0, qd)`` (and ``V`` the identity) the twists
+    ``eta_a = J_a qd`` and their velocity-product rates ``etadot_a = Jdot_a qd`` come
+    from the same prefix sums, differentiated in time: with ``y_b = T_b Omegadot_b``,
+    ``V_b = eta_b - Ad(G_b)^-1 eta_0`` (the body twist of point b relative to the
+    first point) and ``d/dt Ad(G) x = Ad(G) (xdot + ad(G^-1 Gdot) x)``,
+
+        etadot_a = Ad(G_a)^-1 (etadot_0 + sum_{b<a} Ad(G_b) (ydot_b + ad(V_b) y_b))
+                   + ad(Ad(G_a)^-1 eta_0) eta_a,
+
+    ``ydot_b = Tdot_b Omegadot_b + T_b Omegaddot_b``, ``Omegadot = dOmega qd``,
+    ``Omegaddot = 2 sqrt(3) h^2/12 ad(Phi_1 qd) (Phi_2 qd)`` (qdd = 0) and ``Tdot`` a
+    forward-mode derivative of the elementwise kernel only: no derivative of the
+    prefix product is taken.
     """
     o, n = dd.offset, dd.n_dof
     q_d = q[o : o + n]
@@ -88,7 +115,19 @@ def _division_scan(g0, J0, dd: DivisionData, q, V):
     Omega = 0.5 * dd.h[:, None] * (xi1 + xi2) + c[:, None] * jnp.einsum(
         "sab,sb->sa", ad1, xi2
     )
-    R, p, T = jax.vmap(exp_and_tangent)(Omega)
+    if rates is None:
+        R, p, T = jax.vmap(exp_and_tangent)(Omega)
+    else:
+        eta0, etadot0, qd = rates
+        xid = jnp.einsum("szan,n->sza", dd.Phi_z, qd[o : o + n])
+        xid1, xid2 = xid[:, 0], xid[:, 1]
+        Od = 0.5 * dd.h[:, None] * (xid1 + xid2) + c[:, None] * (
+            jnp.einsum("sab,sb->sa", ad1, xid2) - jnp.einsum("sab,sb->sa", ad2, xid1)
+        )
+        Odd = 2.0 * c[:, None] * jnp.einsum("sab,sb->sa", jax.vmap(ad)(xid1), xid2)
+        (R, p, T), (_, _, Td) = jax.vmap(
+            lambda O, dO: jax.jvp(exp_and_tangent, (O,), (dO,))
+        )(Omega, Od)
     E = jax.vmap(pose)(R, p)
     G = _prefix_poses(E)  # (m + 1, 4, 4)
     gs = jnp.einsum("ab,pbc->pac", g0, G)
@@ -103,7 +142,26 @@ def _division_scan(g0, J0, dd: DivisionData, q, V):
         dOmega = jnp.einsum("san,nk->sak", dOmega, V[o : o + n])
         S = jnp.einsum("sab,sbc,sck->sak", AdG, T, dOmega)  # (m, 6, k)
         Js = Js + jnp.concatenate([jnp.zeros_like(S[:1]), jnp.cumsum(S, axis=0)])
-    return gs, jnp.einsum("pab,pbn->pan", Ginv, Js)
+    Js = jnp.einsum("pab,pbn->pan", Ginv, Js)
+    if rates is None:
+        return gs, Js, None
+    eta = jnp.einsum("pai,i->pa", Js, qd)
+    Ge0 = jnp.einsum("pab,b->pa", Ginv, eta0)  # Ad(G_a)^-1 eta_0
+    if n:
+        y = jnp.einsum("sab,sb->sa", T, Od)
+        yd = jnp.einsum("sab,sb->sa", Td, Od) + jnp.einsum("sab,sb->sa", T, Odd)
+        Vb = eta[:-1] - Ge0[:-1]
+        inc = yd + jnp.einsum("sab,sb->sa", jax.vmap(ad)(Vb), y)
+        inc = jnp.einsum("sab,sb->sa", AdG, inc)
+        acc = etadot0[None] + jnp.concatenate(
+            [jnp.zeros_like(inc[:1]), jnp.cumsum(inc, 0)]
+        )
+    else:
+        acc = jnp.broadcast_to(etadot0, (G.shape[0], 6))
+    etadot = jnp.einsum("pab,pb->pa", Ginv, acc) + jnp.einsum(
+        "pab,pb->pa", jax.vmap(ad)(Ge0), eta
+    )
+    return gs, Js, (eta, etadot)
 
 
 def poses_and_jacobians(
@@ -121,43 +179,77 @@ def poses_and_jacobians(
         ``(g, J)``: ``(n_points, 4, 4)`` and ``(n_points, 6, n_dof)``; ``J`` maps qd to
         the body twist (angular first) at each point, in the point's own frame.
     """
+    g, J, _ = _tree_pass(data, q, V, None)
+    return g, J
+
+
+def kinematics_and_rates(
+    data: LinkageData, q: Float[Array, " n_dof"], qd: Float[Array, " n_dof"]
+) -> tuple[Array, Array, Array, Array]:
+    """``(g, J, eta, Jdot qd)`` at every significant point in one pass.
+
+    The twists ``eta = J qd`` and their velocity-product rates ``Jdot qd`` (the
+    acceleration of each point's body frame when qdd = 0) follow the recursion in
+    time (:func:`_division_scan`); only the elementwise step kernel is differentiated.
+
+    Returns:
+        ``(n_points, 4, 4)``, ``(n_points, 6, n_dof)``, ``(n_points, 6)``,
+        ``(n_points, 6)``.
+    """
+    g, J, (eta, etadot) = _tree_pass(data, q, None, qd)
+    return g, J, eta, etadot
+
+
+def _tree_pass(data: LinkageData, q, V, qd):
+    """Poses, Jacobians (times ``V``) and, when ``qd`` is given, twists and rates."""
     n = data.n_dof
     dtype = q.dtype
     V = jnp.eye(n, dtype=dtype) if V is None else V
     k = V.shape[1]
+    zero6 = jnp.zeros(6, dtype=dtype)
     tips: list = []
-    gs, Js = [], []
+    gs, Js, etas, etadots = [], [], [], []
+
+    def append(g, J, r, batched=False):
+        gs.append(g if batched else g[None])
+        Js.append(J if batched else J[None])
+        if r is not None:
+            etas.append(r[0] if batched else r[0][None])
+            etadots.append(r[1] if batched else r[1][None])
+
+    def transport(g, J, r, h):
+        """Through a constant transform ``h``."""
+        A = Ad_inv(h)
+        return g @ h, A @ J, None if r is None else (A @ r[0], A @ r[1])
+
     for ld in data.links:
         if ld.parent == 0:
-            g_p, J_p = jnp.eye(4, dtype=dtype), jnp.zeros((6, k), dtype=dtype)
+            g, J = jnp.eye(4, dtype=dtype), jnp.zeros((6, k), dtype=dtype)
+            r = None if qd is None else (zero6, zero6)
         else:
-            g_p, J_p = tips[ld.parent - 1]
-        g = g_p @ ld.placement
-        J = Ad_inv(ld.placement) @ J_p
+            g, J, r = tips[ld.parent - 1]
+        g, J, r = transport(g, J, r, ld.placement)
         nj = ld.joint_Phi.shape[1]
         if nj:
-            q_j = q[ld.joint_offset : ld.joint_offset + nj]
-            V_j = V[ld.joint_offset : ld.joint_offset + nj]
-            g, J = _joint_step(g, J, ld.joint_Phi, q_j, V_j)
-        gs.append(g[None])
-        Js.append(J[None])
-        g = g @ ld.g_i
-        J = Ad_inv(ld.g_i) @ J
+            sl = slice(ld.joint_offset, ld.joint_offset + nj)
+            rj = None if qd is None else (r[0], r[1], qd[sl])
+            g, J, r = _joint_step(g, J, ld.joint_Phi, q[sl], V[sl], rj)
+        append(g, J, r)
+        g, J, r = transport(g, J, r, ld.g_i)
         if ld.soft:
             for dd in ld.divisions:
-                gd, Jd = _division_scan(g, J, dd, q, V)
-                gs.append(gd)
-                Js.append(Jd)
+                rd = None if qd is None else (r[0], r[1], qd)
+                gd, Jd, r_all = _division_scan(g, J, dd, q, V, rd)
+                append(gd, Jd, r_all, batched=True)
                 g, J = gd[-1], Jd[-1]
+                r = None if r_all is None else (r_all[0][-1], r_all[1][-1])
         else:
-            gs.append(g[None])
-            Js.append(J[None])
-        g = g @ ld.g_f
-        J = Ad_inv(ld.g_f) @ J
-        gs.append(g[None])
-        Js.append(J[None])
-        tips.append((g, J))
-    return jnp.concatenate(gs), jnp.concatenate(Js)
+            append(g, J, r)
+        g, J, r = transport(g, J, r, ld.g_f)
+        append(g, J, r)
+        tips.append((g, J, r))
+    rates = None if qd is None else (jnp.concatenate(etas), jnp.concatenate(etadots))
+    return jnp.concatenate(gs), jnp.concatenate(Js), rates
 
 
 def strains(data: LinkageData, q: Float[Array, " n_dof"]) -> Float[Array, "n_points 6"]:

@@ -1,0 +1,248 @@
+"""A Rosenbrock-W solver for diffrax, with a cheap W for mechanical systems.
+
+Soft robots are stiff through their *linear* elastic and damping forces: the fastest
+modes of ``M qdd = -K q - D qd + f(q, qd, t)`` have eigenvalues of
+``[[0, I], [-M^-1 K, -M^-1 D]]`` far beyond the motion one wants to resolve, and an
+explicit solver's step is bounded by them, not by accuracy. A Rosenbrock-W method
+treats a chosen matrix W linearly implicitly: each stage solves one linear system with
+``I - h gamma W`` and evaluates the vector field once -- no Newton iteration, no
+autodiff Jacobian -- and its order conditions hold for *any* W (Steihaug & Wolfbrandt
+1979; Hairer & Wanner, Solving ODEs II, section IV.7), so W only decides stability.
+
+* :class:`MechanicalTerm` (the simulator's term) gives W from ``(M(q), K, D)`` at the
+  start of each step. Then ``(I/(h gamma) - W) x = r`` reduces to one symmetric
+  positive definite system ``(M + c D + c^2 K) x_v = c (M r_v - c K r_q)``,
+  ``x_q = c (r_q + x_v)`` with ``c = h gamma`` (n x n, Cholesky once per step).
+* Any other diffrax term gets the exact Jacobian by forward-mode autodiff and an LU
+  solve (a classical Rosenbrock method).
+
+The method is ROS34PW2 (Rang & Angermann, BIT 45, 2005): 4 stages, order 3, embedded
+order 2, stiffly accurate, L-stable, a W-method. It is run in the transformed variables
+``u_i = sum_j gamma_ij k_j`` (Hairer & Wanner, eq. IV.7.4'), so no matrix-vector
+product with W is needed. The vector field at the step's end is evaluated for the
+next step's first stage (first same as last) and gives a cubic Hermite dense output.
+Non-autonomous vector fields are handled as a W-method whose W has no time column
+(the order is kept).
+"""
+
+from collections.abc import Callable
+from typing import ClassVar
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.scipy.linalg import cho_factor, cho_solve, lu_factor, lu_solve
+
+# ROS34PW2 (Rang & Angermann 2005, Table 4.1): alpha_ij, gamma_ij (j < i), gamma_ii,
+# b, and the embedded b_hat, in the standard Rosenbrock form
+#   (I - h gamma W) k_i = h f(y + sum_j alpha_ij k_j) + h W sum_j gamma_ij k_j.
+_GAMMA = 4.3586652150845900e-01
+_ALPHA = np.array(
+    [
+        [0.0, 0.0, 0.0, 0.0],
+        [8.7173304301691801e-01, 0.0, 0.0, 0.0],
+        [8.4457060015369423e-01, -1.1299064236484185e-01, 0.0, 0.0],
+        [0.0, 0.0, 1.0, 0.0],
+    ]
+)
+_GAMMA_MAT = np.array(
+    [
+        [_GAMMA, 0.0, 0.0, 0.0],
+        [-8.7173304301691801e-01, _GAMMA, 0.0, 0.0],
+        [-9.0338057013044082e-01, 5.4180672388095326e-02, _GAMMA, 0.0],
+        [2.4212380706095346e-01, -1.2232505839045147e00, 5.4526025533510214e-01, _GAMMA],
+    ]
+)
+_B = np.array(
+    [2.4212380706095346e-01, -1.2232505839045147e00, 1.5452602553351020e00, _GAMMA]
+)
+_B_HAT = np.array(
+    [3.7810903145819369e-01, -9.6042292212423178e-02, 5.0e-01, 2.1793326075422950e-01]
+)
+
+
+class RosenbrockTableau(eqx.Module):
+    """A Rosenbrock-W method in transformed variables (Hairer & Wanner IV.7.4').
+
+    With ``Gamma = (gamma_ij)`` lower triangular (diagonal ``gamma``) and
+    ``u_i = sum_j gamma_ij k_j``: ``(I/(h gamma) - W) u_i = f(t + c_i h, y + sum_j
+    a_ij u_j) + sum_j C_ij u_j / h`` and ``y_1 = y + sum_i m_i u_i``, with
+    ``a = alpha Gamma^-1``, ``C = diag(1/gamma) - Gamma^-1``, ``m = b Gamma^-1``;
+    the error estimate is ``sum_i e_i u_i`` with ``e = (b - b_hat) Gamma^-1``.
+
+    Attributes:
+        gamma: diagonal coefficient.
+        a: (s, s) stage coefficients (strictly lower).
+        C: (s, s) coupling coefficients (strictly lower).
+        c: (s,) stage times (row sums of alpha).
+        m: (s,) solution weights.
+        e: (s,) error weights.
+        order: classical order of the solution.
+    """
+
+    gamma: float = eqx.field(static=True)
+    a: tuple[tuple[float, ...], ...] = eqx.field(static=True)
+    C: tuple[tuple[float, ...], ...] = eqx.field(static=True)
+    c: tuple[float, ...] = eqx.field(static=True)
+    m: tuple[float, ...] = eqx.field(static=True)
+    e: tuple[float, ...] = eqx.field(static=True)
+    order: int = eqx.field(static=True)
+
+    @classmethod
+    def from_standard(cls, alpha, gamma_mat, b, b_hat, order):
+        """Build from the standard-form coefficients ``alpha, Gamma, b, b_hat``."""
+        gi = np.linalg.inv(gamma_mat)
+
+        def vec(x):
+            return tuple(float(v) for v in x)
+
+        return cls(
+            gamma=float(gamma_mat[0, 0]),
+            a=tuple(vec(r) for r in alpha @ gi),
+            C=tuple(vec(r) for r in np.diag(np.diag(gi)) - gi),
+            c=vec(alpha.sum(axis=1)),
+            m=vec(b @ gi),
+            e=vec((b - b_hat) @ gi),
+            order=order,
+        )
+
+
+ROS34PW2 = RosenbrockTableau.from_standard(_ALPHA, _GAMMA_MAT, _B, _B_HAT, order=3)
+
+
+class MechanicalTerm(diffrax.AbstractTerm):
+    """ODE term of ``y = (q, qd)`` that also returns the matrices of its stiff part.
+
+    ``field(t, y, args) -> (ydot, (M, K, D))`` with ``ydot = (qd, qdd)`` and
+    ``W = [[0, I], [-M^-1 K, -M^-1 D]]`` the linear part used by :class:`RosenbrockW`
+    (any other solver sees an ordinary ODE term).
+
+    Attributes:
+        field: the vector field and its linear part.
+    """
+
+    field: Callable
+
+    def vf(self, t, y, args):
+        """The vector field ``ydot``."""
+        return self.field(t, y, args)[0]
+
+    def vf_and_matrices(self, t, y, args):
+        """``(ydot, (M, K, D))``."""
+        return self.field(t, y, args)
+
+    def contr(self, t0, t1, **kwargs):
+        """The control of an ODE: the time increment."""
+        return t1 - t0
+
+    def prod(self, vf, control):
+        """Vector field times control."""
+        return vf * control
+
+
+def _mechanical_term(terms) -> tuple[MechanicalTerm, object] | None:
+    """``(term, direction)`` of a :class:`MechanicalTerm`, if ``terms`` is one.
+
+    ``diffeqsolve`` hands solvers its terms inside a private wrapper (``WrapTerm``:
+    attributes ``term`` and ``direction``, times multiplied by the direction).
+    """
+    if isinstance(terms, MechanicalTerm):
+        return terms, 1
+    inner = getattr(terms, "term", None)
+    if isinstance(inner, MechanicalTerm):
+        return inner, terms.direction
+    return None
+
+
+def _mechanical_solver(matrices, c):
+    """``x = (I/c - W)^-1 r`` for ``W = [[0, I], [-M^-1 K, -M^-1 D]]``."""
+    M, K, D = matrices
+    n = M.shape[0]
+    fac = cho_factor(M + c * D + (c * c) * K)
+
+    def solve(r):
+        rq, rv = r[:n], r[n:]
+        xv = cho_solve(fac, c * (M @ rv - c * (K @ rq)))
+        return jnp.concatenate([c * (rq + xv), xv])
+
+    return solve
+
+
+def _dense_solver(Jac, c):
+    """``x = (I/c - J)^-1 r`` by LU, for a general Jacobian ``J``."""
+    n = Jac.shape[0]
+    fac = lu_factor(jnp.eye(n, dtype=Jac.dtype) / c - Jac)
+    return lambda r: lu_solve(fac, r)
+
+
+class RosenbrockW(diffrax.AbstractAdaptiveSolver):
+    """Rosenbrock-W solver (ROS34PW2 by default), adaptive, for stiff mechanics.
+
+    With a :class:`MechanicalTerm` W is the linear elastic and damping part at the
+    step's start (see the module docstring); with any other term W is the exact
+    Jacobian (forward-mode autodiff, dense LU). One-dimensional array states only.
+
+    Attributes:
+        tableau: the method's coefficients.
+    """
+
+    tableau: RosenbrockTableau = ROS34PW2
+    term_structure: ClassVar = diffrax.AbstractTerm
+    interpolation_cls: ClassVar = diffrax.ThirdOrderHermitePolynomialInterpolation
+
+    def order(self, terms):
+        """Classical order (3 for ROS34PW2)."""
+        return self.tableau.order
+
+    def error_order(self, terms):
+        """Order of the local error estimate's leading term minus one."""
+        return self.tableau.order
+
+    def _evaluate(self, terms, t, y, args):
+        mech = _mechanical_term(terms)
+        if mech is not None:
+            term, direction = mech
+            return term.vf_and_matrices(t * direction, y, args)
+        f = terms.vf(t, y, args)
+        return f, jax.jacfwd(lambda y_: terms.vf(t, y_, args))(y)
+
+    def init(self, terms, t0, t1, y0, args):
+        """First-same-as-last state: the vector field and its linear part at y0."""
+        if jnp.ndim(y0) != 1:
+            raise ValueError(
+                f"RosenbrockW needs a one-dimensional array state; got shape "
+                f"{jnp.shape(y0)} (flatten the state, e.g. with jax.flatten_util)."
+            )
+        return self._evaluate(terms, t0, y0, args)
+
+    def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
+        """One step of the method (see the module docstring)."""
+        tab = self.tableau
+        f0, lin0 = solver_state
+        h = t1 - t0
+        c = h * tab.gamma
+        if _mechanical_term(terms) is not None:
+            solve = _mechanical_solver(lin0, c)
+        else:
+            solve = _dense_solver(lin0, c)
+        s = len(tab.m)
+        us = []
+        for i in range(s):
+            if i == 0:
+                fi = f0
+            else:
+                yi = y0 + sum(tab.a[i][j] * us[j] for j in range(i) if tab.a[i][j])
+                fi = terms.vf(t0 + tab.c[i] * h, yi, args)
+            rhs = fi + sum(tab.C[i][j] / h * us[j] for j in range(i) if tab.C[i][j])
+            us.append(solve(rhs))
+        y1 = y0 + sum(tab.m[i] * us[i] for i in range(s))
+        y_error = sum(tab.e[i] * us[i] for i in range(s) if tab.e[i])
+        f1, lin1 = self._evaluate(terms, t1, y1, args)
+        dense_info = dict(y0=y0, y1=y1, k0=f0 * h, k1=f1 * h)
+        return y1, y_error, dense_info, (f1, lin1), diffrax.RESULTS.successful
+
+    def func(self, terms, t0, y0, args):
+        """The vector field at ``(t0, y0)``."""
+        return terms.vf(t0, y0, args)
