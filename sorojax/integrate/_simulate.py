@@ -113,9 +113,19 @@ def stiffness_estimate(linkage: Linkage, q0) -> float:
     return float(np.abs(lam).max()) if lam.size else 0.0
 
 
-def _choose_solver(solver, linkage, q0, t0, t1, rtol):
-    if not (isinstance(solver, str) and solver.lower() == "auto"):
-        return solver
+def auto_solver(linkage: Linkage, q0, t0, t1, rtol: float) -> str:
+    """The solver name ``solver="auto"`` takes for this run (see ``DEFAULT_SOLVER``).
+
+    Args:
+        linkage: the model.
+        q0: initial coordinates ``(n_dof,)`` (the linearisation point).
+        t0: initial time [s].
+        t1: final time [s].
+        rtol: the relative tolerance of the run.
+
+    Returns:
+        ``"ros34pw2"``, ``"kvaerno5"`` or ``"tsit5"``.
+    """
     leaves = jax.tree.leaves(eqx.filter((linkage, q0, t0, t1), eqx.is_array))
     if any(isinstance(x, jax.core.Tracer) for x in leaves):
         return "tsit5"  # traced model: no host-side analysis (documented)
@@ -128,6 +138,12 @@ def _choose_solver(solver, linkage, q0, t0, t1, rtol):
     if n_explicit > AUTO_STIFF_STEPS and damped and rtol >= AUTO_MIN_RTOL:
         return "ros34pw2"
     return "kvaerno5" if n_explicit > AUTO_VERY_STIFF_STEPS else "tsit5"
+
+
+def _choose_solver(solver, linkage, q0, t0, t1, rtol):
+    if isinstance(solver, str) and solver.lower() == "auto":
+        return auto_solver(linkage, q0, t0, t1, rtol)
+    return solver
 
 
 def _make_solver(solver) -> diffrax.AbstractSolver:
