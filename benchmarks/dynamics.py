@@ -30,6 +30,7 @@ its own updates only its entry of the JSON).
 
 import argparse
 import csv
+import inspect
 import json
 import math
 import os
@@ -61,12 +62,15 @@ ETA_DAMPED = 1e4  # Kelvin-Voigt damping of the damped case [Pa s]
 N_SAVE = 101  # save times of every run (static: one compile serves all parts)
 MAX_STEPS = 20_000  # step cap of adaptive runs (static: shared by parts 1, 3, 4)
 STAB_MAX_STEPS = 4_000  # step cap of the adaptive runs of the stability part
+DEFAULT_RTOL = inspect.signature(sj.simulate).parameters["rtol"].default
+DEFAULT_ATOL = inspect.signature(sj.simulate).parameters["atol"].default
 SOROSIM_5S_S = 1.5  # SoRoSim (MATLAB, ode15s): 5 s of the damped free-fall rod
 SPEED_TARGET_S = 0.15
 
 EXPLICIT = ("tsit5", "dopri5", "dopri8")
 IMPLICIT = ("kvaerno3", "kvaerno5", "implicit_euler")
-SOLVERS = EXPLICIT + IMPLICIT
+ROSENBROCK = ("ros34pw2",)  # linearly implicit (W = stiff part M, K, D): cheap steps
+SOLVERS = EXPLICIT + IMPLICIT + ROSENBROCK
 STYLE = {  # colour, marker
     "tsit5": ("tab:blue", "o"),
     "dopri5": ("tab:orange", "s"),
@@ -74,6 +78,7 @@ STYLE = {  # colour, marker
     "kvaerno3": ("tab:red", "^"),
     "kvaerno5": ("tab:purple", "v"),
     "implicit_euler": ("tab:brown", "P"),
+    "ros34pw2": ("black", "*"),
 }
 
 
@@ -280,7 +285,8 @@ def wp_settings(quick, implicit_orders):
             "orders_3d": (3,),
             "rtols": {s: (1e-3, 1e-5, 1e-7) for s in ("tsit5", "dopri5", "kvaerno3")}
             | {"dopri8": (1e-3, 1e-6, 1e-9), "kvaerno5": (1e-3, 1e-5, 1e-7)}
-            | {"implicit_euler": (1e-2, 1e-3)},
+            | {"implicit_euler": (1e-2, 1e-3)}
+            | {"ros34pw2": (1e-2, 1e-3, 1e-4, 1e-5, 1e-6)},
             "budget_s": 2.0,
             "basis_ref_orders": (6,),
         }
@@ -292,7 +298,8 @@ def wp_settings(quick, implicit_orders):
         "orders_3d": (3,),
         "rtols": {s: decades for s in ("tsit5", "dopri5", "kvaerno3", "kvaerno5")}
         | {"dopri8": decades + (1e-10,)}
-        | {"implicit_euler": (1e-2, 1e-3, 1e-4, 1e-5)},
+        | {"implicit_euler": (1e-2, 1e-3, 1e-4, 1e-5)}
+        | {"ros34pw2": (1e-2,) + decades[:5]},
         "budget_s": 6.0,
         "basis_ref_orders": (5, 6),
     }
@@ -648,6 +655,7 @@ def bench_stability(quick):
     max_fixed = n_fixed + 16
     rods = {
         "soft": (free_fall_rod(order=3), L_SOFT, 0.2),
+        "soft_damped": (free_fall_rod(order=3, eta=ETA_DAMPED), L_SOFT, 0.2),
         "stiff": (stiff_rod(), 0.2, 0.02),
     }
     theory = {}
@@ -659,6 +667,7 @@ def bench_stability(quick):
             "w_min_rad_s": float(w.min()),
             "w_max_rad_s": float(w.max()),
             "f_max_hz": float(w.max() / (2 * math.pi)),
+            "max_abs_eigenvalue": float(np.abs(lam).max()),
             "explicit_h_limit_s": limits,
         }
         print(
@@ -737,6 +746,7 @@ def bench_stability(quick):
         "settings": {
             "rods": {
                 "soft": "free_fall_rod(order=3): L 0.5 m, r 2->1 cm, E 1 MPa, rho 1000, eta 0",
+                "soft_damped": f"the soft rod with eta {ETA_DAMPED:g} Pa s (its fastest modes are damped)",
                 "stiff": "steel: L 0.2 m, r 1 mm, E 200 GPa, nu 0.3, rho 7800, eta 0, order 3",
             },
             "q0": "uniform strain: torsion 0.1, bending 1 (about y) and 0.3 (about z) rad/m, at rest; gravity -z (3D: excites every mode)",
@@ -772,8 +782,9 @@ def plot_stability(res, path):
 
     rows = res["rows"]
     cols = [f"h={h:.0e}" for h in STEPS] + [f"rtol={r:.0e}" for r in ADAPT_RTOLS]
-    fig, axes = plt.subplots(1, 2, figsize=(14, 4.8))
-    for ax, rname in zip(axes, ("soft", "stiff"), strict=True):
+    names = [n for n in ("soft", "soft_damped", "stiff") if n in res["theory"]]
+    fig, axes = plt.subplots(1, len(names), figsize=(7 * len(names), 4.8))
+    for ax, rname in zip(axes, names, strict=True):
         for i, solver in enumerate(SOLVERS):
             for j, c in enumerate(cols):
                 match = [
@@ -808,7 +819,8 @@ def plot_stability(res, path):
         ax.set_yticks(np.arange(len(SOLVERS)) + 0.5, SOLVERS, fontsize=8)
         th = res["theory"][rname]
         ax.set_title(
-            f"{rname} rod (w_max {th['w_max_rad_s']:.3g} rad/s; tsit5 limit"
+            f"{rname} rod (w_max {th['w_max_rad_s']:.3g} rad/s, max |lambda|"
+            f" {th.get('max_abs_eigenvalue', th['w_max_rad_s']):.3g} 1/s; tsit5 limit"
             f" {th['explicit_h_limit_s']['tsit5']:.1e} s)",
             fontsize=9,
         )
@@ -834,7 +846,7 @@ def speed_choices(wp_rows, level=1e-4, slack=1.5):
     if default in best:
         if default not in [c[0] for c in chosen]:
             chosen.append((default, best[default]["rtol"], "default, WP rtol"))
-    chosen.append((default, 1e-6, "default solver, default tolerances"))
+    chosen.append((default, DEFAULT_RTOL, "default solver, default tolerances"))
     if len(ranked) < 2:
         chosen += [("dopri8", 1e-6, "fallback"), ("tsit5", 1e-5, "fallback")]
     return chosen
@@ -859,6 +871,9 @@ def bench_speed(quick, wp_rows):
     )
     rows = []
     for solver, rtol, why in choices:
+        if solver == "auto":  # resolve on the host (the AOT trace below has no values)
+            solver = sj.integrate.auto_solver(rod, q0, 0.0, t1, rtol)
+            why = f"{why}: auto -> {solver}"
 
         def run(rod, q0, rt, at, solver=solver):
             tr = sj.simulate(
@@ -876,7 +891,7 @@ def bench_speed(quick, wp_rows):
 
         rt, at = tols(rtol)
         if why.startswith("default solver"):
-            at = jnp.asarray(1e-8)  # simulate's defaults: rtol 1e-6, atol 1e-8
+            at = jnp.asarray(DEFAULT_ATOL)  # simulate's own defaults
         t0 = time.perf_counter()
         compiled = eqx.filter_jit(run).lower(rod, q0, rt, at).compile()
         tc = time.perf_counter() - t0
