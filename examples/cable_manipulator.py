@@ -166,7 +166,9 @@ def main(argv=None):
     )
     hook = pd_hook(arm.tip_point(1), target, T_ff)
     controlled = cable_manipulator(order=args.order, eta=ETA, actuator_strength=hook)
-    traj = sj.simulate(controlled, args.t1, n_save=args.n_save)
+    # rtol 1e-6 (the PD gains stiffen the loop beyond the W that ROS34PW2 sees; the
+    # 1 mm tracking test was written for these tolerances).
+    traj = sj.simulate(controlled, args.t1, n_save=args.n_save, rtol=1e-6, atol=1e-8)
     tip_t = np.asarray(traj.tip_positions(controlled))
     err = np.linalg.norm(tip_t - target, axis=1)
     u = np.asarray(traj.u)

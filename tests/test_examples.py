@@ -58,7 +58,8 @@ def test_free_fall_dynamics_dissipates_and_keeps_outputs(tmp_path):
     """examples/free_fall_dynamics.py over 0.5 s: the damped rod never gains energy.
 
     Reference: dE/dt = -qd^T D qd <= 0; between save times E may rise by at most 1e-7
-    of |E(0)| (integration error at the default tolerances, rtol 1e-6). A second run
+    of |E(0)| (integration error at the default tolerances: ROS34PW2, rtol 1e-3; each
+    step dissipates, measured: E falls at every save). A second run
     must refuse to overwrite the PNG without --overwrite.
     """
     ex = _load("free_fall_dynamics")

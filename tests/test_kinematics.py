@@ -178,7 +178,9 @@ def test_twist_rates_from_the_recursion_equal_jdot_qd(tree, key):
     err_eta = float(jnp.abs(eta - J_ref @ qd).max())
     err_rate = float(jnp.abs(etadot - rate_ref).max()) / scale
     assert err_eta < 1e-12, f"eta vs J qd: {err_eta:.1e}"
-    assert err_rate < 1e-12, f"Jdot qd from the recursion vs forward mode: {err_rate:.1e}"
+    assert err_rate < 1e-12, (
+        f"Jdot qd from the recursion vs forward mode: {err_rate:.1e}"
+    )
 
 
 def test_strains_and_twists(tree, key):

@@ -197,7 +197,9 @@ def test_gradient_through_simulate_matches_central_differences():
     _, grad = f(jnp.asarray(E))
     fd = (f(jnp.asarray(E + dE))[0] - f(jnp.asarray(E - dE))[0]) / (2 * dE)
     err = abs(float(grad) - float(fd)) / abs(float(fd))
-    assert err < 1e-6, f"dz/dE {float(grad):.10e} vs central {float(fd):.10e}: {err:.1e}"
+    assert err < 1e-6, (
+        f"dz/dE {float(grad):.10e} vs central {float(fd):.10e}: {err:.1e}"
+    )
 
 
 def test_vmap_equals_loop(rod):
@@ -207,9 +209,7 @@ def test_vmap_equals_loop(rod):
     )(jnp.array([0.5, 1.0, 2.0]))
 
     def final(q0):
-        return sj.simulate(
-            rod, 0.1, q0, solver="ros34pw2", throw=False, n_save=2
-        ).q[-1]
+        return sj.simulate(rod, 0.1, q0, solver="ros34pw2", throw=False, n_save=2).q[-1]
 
     batched = jax.vmap(final)(q0s)
     looped = jnp.stack([final(q0) for q0 in q0s])

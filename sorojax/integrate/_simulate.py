@@ -54,7 +54,7 @@ SOLVERS: dict[str, Callable[[], diffrax.AbstractSolver]] = {
 """Solvers selectable by name; any ``diffrax.AbstractSolver`` instance is also taken."""
 
 DEFAULT_SOLVER = "auto"
-"""``"auto"``: ROS34PW2 on damped stiff models, Tsit5 otherwise (Kvaerno5 if very stiff).
+"""``"auto"``: ROS34PW2 on damped stiff models, else Tsit5 (Kvaerno5 if very stiff).
 
 Chosen from ``benchmarks/dynamics.py`` (work-precision and stability parts). Soft rods
 with material damping have strongly damped fast modes (eigenvalues of the

@@ -29,8 +29,11 @@ _C = math.sqrt(3.0) / 12.0
 
 
 def _joint_step(g, J, Phi, q_j, V_j, rates=None):
-    """One lumped-joint step; ``rates = (eta, etadot_v, qd_j)`` also carries the
-    twist and its velocity-product rate (see :func:`_division_scan`)."""
+    """One lumped-joint step (pose and Jacobian).
+
+    ``rates = (eta, etadot_v, qd_j)`` also carries the twist and its velocity-product
+    rate through the step (see :func:`_division_scan`).
+    """
     Omega = Phi @ q_j
     if rates is None:
         R, p, T = exp_and_tangent(Omega)
