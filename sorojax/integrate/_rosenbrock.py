@@ -220,7 +220,12 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
         """One step of the method (see the module docstring)."""
         tab = self.tableau
-        f0, lin0 = solver_state
+        # First same as last, unless the vector field jumped at t0 (diffrax's jump_ts).
+        f0, lin0 = jax.lax.cond(
+            made_jump,
+            lambda: self._evaluate(terms, t0, y0, args),
+            lambda: solver_state,
+        )
         h = t1 - t0
         c = h * tab.gamma
         if _mechanical_term(terms) is not None:
