@@ -238,4 +238,3 @@ def test_tableau_is_stiffly_accurate_and_consistent():
     np.testing.assert_allclose(R._B_HAT.sum(), 1.0, atol=1e-14)
     np.testing.assert_allclose(R._ALPHA[-1] + R._GAMMA_MAT[-1], R._B, atol=1e-14)
     assert math.isclose(R.ROS34PW2.gamma, 0.435866521508459, rel_tol=1e-14)
-
