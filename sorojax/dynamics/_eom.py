@@ -1,7 +1,7 @@
 """Equations of motion M(q) qdd = F(q, qd, t) + tau - C(q, qd) qd - D qd - K q.
 
 One pass forms the body Jacobians J, the twists J qd and their velocity-product rates
-Jdot qd (a forward-mode derivative of J qd along qd, no Jdot matrix), then M = sum w
+Jdot qd (the recursion differentiated in time, no Jdot matrix), then M = sum w
 J^T M J and every point force (inertial, gravity, point wrenches, custom hook) is
 gathered as one body wrench per point and mapped by J^T. K and D are constant
 (precomputed once per solve, outside the integrator's loop).
@@ -16,13 +16,18 @@ from jax.scipy.linalg import cho_factor, cho_solve
 from jaxtyping import Array, ArrayLike, Float
 
 from ..kinematics._api import Kinematics, _as_q
-from ..kinematics._recursion import jacobians_dot, poses_and_jacobians, strains
+from ..kinematics._recursion import (
+    jacobians_dot,
+    kinematics_and_rates,
+    poses_and_jacobians,
+    strains,
+)
 from ..model._linkage import Linkage
 from ..model._precompute import LinkageData, precompute
 from ._actuation import actuation_force, effective_inputs
 from ._constraints import constraint_jacobian_from_data, constraint_terms
 from ._external import custom_wrenches, external_wrenches
-from ._mass import _gyroscopic, _mass_from_J, _weighted_inertia, kinematics_with_rates
+from ._mass import _gyroscopic, _mass_from_J, _weighted_inertia
 
 GeneralizedForce = Callable[[Array, Array, Array], ArrayLike]
 """``tau(t, q, qd) -> (n_dof,)`` generalised actuation force added to the right side."""
@@ -46,7 +51,7 @@ def mass_and_force(
     ``u`` are the actuation inputs at ``t`` (None: no actuator forces); prescribed
     joints add nothing here (their efforts are constraint multipliers).
     """
-    g, J, eta, etadot_v = kinematics_with_rates(data, q, qd)
+    g, J, eta, etadot_v = kinematics_and_rates(data, q, qd)
     cache: list = []
 
     def kin_fn():

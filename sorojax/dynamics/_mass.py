@@ -14,8 +14,9 @@ qd^T (Mdot - 2C) qd = 0.
 
 Two ways to evaluate the velocity-product force C qd:
 
-* :func:`bias_terms` (used by the dynamics): forms J once and takes Jdot qd as the
-  forward-mode derivative of J qd along qd; M comes from the same J.
+* the dynamics (:func:`sorojax.dynamics._eom.mass_and_force`): one kinematic pass
+  gives J, the twists and their rates Jdot qd
+  (:func:`sorojax.kinematics._recursion.kinematics_and_rates`); M comes from the same J.
 * :func:`coriolis_force`: no Jacobian at all. The body twists come from a forward-mode
   derivative of the poses, their velocity-product rates from a second one, and the
   generalised force from the backward wrench recursion. Cost O(n_points n_dof).
@@ -27,11 +28,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
 from ..kinematics._api import _as_q
-from ..kinematics._recursion import (
-    jacobians_dot,
-    kinematics_and_rates,
-    poses_and_jacobians,
-)
+from ..kinematics._recursion import jacobians_dot, poses_and_jacobians
 from ..lie import ad
 from ..model._linkage import Linkage
 from ..model._precompute import LinkageData, precompute
@@ -53,17 +50,6 @@ def _gyroscopic(Mw, eta, etadot_v):
     Meta = jnp.einsum("pab,pb->pa", Mw, eta)
     adT = jnp.einsum("pba,pb->pa", jax.vmap(ad)(eta), Meta)
     return jnp.einsum("pab,pb->pa", Mw, etadot_v) - adT
-
-
-def kinematics_with_rates(data: LinkageData, q, qd):
-    """``(g, J, eta, Jdot qd)`` at every point, in one kinematic pass.
-
-    J from the Jacobian recursion, ``eta = J qd``, and the velocity-product rates
-    ``Jdot qd`` from the same prefix sums differentiated in time
-    (:func:`sorojax.kinematics._recursion.kinematics_and_rates`), without forming
-    Jdot or differentiating the whole recursion.
-    """
-    return kinematics_and_rates(data, q, qd)
 
 
 def _twists_from_poses(data: LinkageData, q, qd):

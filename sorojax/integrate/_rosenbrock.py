@@ -35,7 +35,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.scipy.linalg import cho_factor, cho_solve, lu_factor, lu_solve
 
-# ROS34PW2 (Rang & Angermann 2005, Table 4.1): alpha_ij, gamma_ij (j < i), gamma_ii,
+# ROS34PW2 (Rang & Angermann, BIT 45, 2005): alpha_ij, gamma_ij (j < i), gamma_ii,
 # b, and the embedded b_hat, in the standard Rosenbrock form
 #   (I - h gamma W) k_i = h f(y + sum_j alpha_ij k_j) + h W sum_j gamma_ij k_j.
 _GAMMA = 4.3586652150845900e-01
