@@ -963,10 +963,10 @@ def bench_speed(quick, wp_rows):
 
 
 def bench_scaling(quick):
-    # (a) n_dof: tsit5 adaptive rtol 1e-6, undamped free-fall rod.
+    # (a) n_dof: two series: Tsit5 adaptive rtol 1e-6 on the undamped free-fall rod,
+    # and the default for damped rods (ROS34PW2, rtol 1e-3) on the damped one.
     t1 = 0.2 if quick else 0.5
-    rtol = 1e-6
-    solver = "tsit5"
+    series = (("tsit5", 0.0, 1e-6), ("ros34pw2", ETA_DAMPED, 1e-3))
     if quick:
         configs = [(MODES, 1), (MODES, 3), (MODES, 9), ((1,) * 6, 0), ((1,) * 6, 4)]
     else:
@@ -974,8 +974,10 @@ def bench_scaling(quick):
             ((1,) * 6, o) for o in (0, 1, 3, 4, 9)
         ]
     ndof_rows = []
-    for modes, order in configs:
-        rod = free_fall_rod(order=order, modes=modes)
+    for (solver, eta, rtol), (modes, order) in (
+        (a, b) for a in series for b in configs
+    ):
+        rod = free_fall_rod(order=order, modes=modes, eta=eta)
         q0 = free_fall_q0(rod)
         first = TRACKER.warm(
             (solver, order, "pid", modes),
@@ -993,6 +995,7 @@ def bench_scaling(quick):
             "order": order,
             "n_dof": rod.n_dof,
             "solver": solver,
+            "eta": eta,
             "rtol": rtol,
             "t1": t1,
             "status": name,
@@ -1005,7 +1008,8 @@ def bench_scaling(quick):
         }
         ndof_rows.append(row)
         print(
-            f"    modes {row['modes']} order {order:2d} ({rod.n_dof:2d} DoF):"
+            f"    {solver:<9} eta {eta:g} modes {row['modes']} order {order:2d}"
+            f" ({rod.n_dof:2d} DoF):"
             f" {med:7.3f} s for {t1} s ({row['wall_per_sim_second_s']:.3f} s per"
             f" simulated s), {steps} steps, {row['wall_per_step_ms']:.3f} ms/step,"
             f" compile+run {first:.1f} s {name}",
@@ -1084,12 +1088,12 @@ def bench_scaling(quick):
     return {
         "settings": {
             "ndof": {
-                "solver": solver,
-                "rtol": rtol,
-                "atol": rtol * 1e-2,
+                "series": [
+                    {"solver": sv, "eta": e, "rtol": rt, "atol": rt * 1e-2}
+                    for sv, e, rt in series
+                ],
                 "t1": t1,
-                "eta": 0.0,
-                "rod": "free_fall_rod(order, modes)",
+                "rod": "free_fall_rod(order, modes, eta)",
             },
             "batch": {
                 "solver": "tsit5",
@@ -1113,29 +1117,39 @@ def plot_scaling(res, path):
 
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.8))
     rows = res["ndof_rows"]
-    for modes, mk in (("111000", "o-"), ("111111", "s--")):
-        pts = sorted((r for r in rows if r["modes"] == modes), key=lambda r: r["n_dof"])
-        if not pts:
-            continue
-        nd = [r["n_dof"] for r in pts]
-        ax1.loglog(
-            nd,
-            [r["wall_per_sim_second_s"] for r in pts],
-            mk,
-            color="tab:blue",
-            label=f"modes {modes}: wall per simulated s",
-        )
-        ax1.loglog(
-            nd,
-            [r["wall_per_step_ms"] * 1e-3 for r in pts],
-            mk,
-            color="tab:orange",
-            label=f"modes {modes}: wall per step",
-        )
+    for solver, col in (("tsit5", "tab:blue"), ("ros34pw2", "black")):
+        for modes, mk in (("111000", "o"), ("111111", "s")):
+            pts = sorted(
+                (
+                    r
+                    for r in rows
+                    if r["modes"] == modes and r.get("solver", "tsit5") == solver
+                ),
+                key=lambda r: r["n_dof"],
+            )
+            if not pts:
+                continue
+            nd = [r["n_dof"] for r in pts]
+            lab = f"{solver} (eta {pts[0].get('eta', 0.0):g}), modes {modes}"
+            ax1.loglog(
+                nd,
+                [r["wall_per_sim_second_s"] for r in pts],
+                mk + "-",
+                color=col,
+                label=f"{lab}: per simulated s",
+            )
+            ax1.loglog(
+                nd,
+                [r["wall_per_step_ms"] * 1e-3 for r in pts],
+                mk + ":",
+                color=col,
+                alpha=0.5,
+                label=f"{lab}: per step",
+            )
     ax1.set_xlabel("n_dof")
     ax1.set_ylabel("wall time [s]")
     ax1.set_title(
-        f"tsit5 rtol {res['settings']['ndof']['rtol']:g}, undamped free-fall rod",
+        "free-fall rod: tsit5 rtol 1e-6 undamped; ros34pw2 rtol 1e-3 damped",
         fontsize=9,
     )
     ax1.grid(True, which="both", alpha=0.3)
