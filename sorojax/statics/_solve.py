@@ -73,6 +73,38 @@ def equilibrium_residual(
     return r
 
 
+class _Solved(eqx.Module):
+    value: Array
+    result: optx.RESULTS
+
+
+def _implicit_solution(fn, x_star, args, linear_solver):
+    """``x_star`` (a root of ``fn(x, args)``) with implicit-function derivatives.
+
+    The value is ``x_star`` itself; its derivative with respect to ``args`` and to
+    everything ``fn`` closes over (the linkage's arrays) is ``dx = -J^-1 (df/dargs
+    dargs)`` with ``J = df/dx`` at ``x_star`` (a custom JVP; reverse mode follows by
+    transposition, with lineax's transposable linear solve). Nothing of it enters the
+    primal program: only a differentiated solve traces the Jacobian.
+    """
+    conv, consts = jax.closure_convert(fn, x_star, args)
+
+    @jax.custom_jvp
+    def ident(x, a, c):
+        return x
+
+    @ident.defjvp
+    def _ident_jvp(primals, tangents):
+        x, a, c = primals
+        _, ta, tc = tangents
+        _, rhs = jax.jvp(lambda a_, c_: conv(x, a_, *c_), (a, c), (ta, tc))
+        op = lx.JacobianLinearOperator(lambda x_, _: conv(x_, a, *c), x)
+        dx = lx.linear_solve(op, rhs, linear_solver).value
+        return x, -dx
+
+    return ident(jax.lax.stop_gradient(x_star), args, list(consts))
+
+
 @eqx.filter_jit
 def _solve_statics(
     linkage: Linkage,
@@ -105,52 +137,61 @@ def _solve_statics(
     n_c = linkage.n_constraints
     closed = n_c > 0
     linear_solver = lx.SVD() if closed else lx.AutoLinearSolver(well_posed=None)
-    if solver is None:
-        solver = optx.Newton(rtol=rtol, atol=atol, linear_solver=linear_solver)
-        # Intermediate load increments only need a good start for the next one.
-        intermediate = optx.Newton(rtol=1e-4, atol=1e-4, linear_solver=linear_solver)
-    else:
-        intermediate = solver
+    default_solver = solver is None
     data = precompute(linkage)
-    scale = _row_scale(data.K)[free]
     q_p0 = q0[qi]
+    t = jnp.asarray(t, q0.dtype)
 
-    def full(x, lam, u_):
+    def full(x, lam, u_, q_p0_=q_p0):
         q = jnp.zeros(n, x.dtype).at[free].set(x[: len(free)])
         if len(qi):
-            q = q.at[qi].set(q_p0 + lam * (u_[ui] - q_p0))
+            q = q.at[qi].set(q_p0_ + lam * (u_[ui] - q_p0_))
         return q, x[len(free) :]
 
     # The linkage travels in the solver's args as its arrays only (cable paths and
     # anchors get gradients); functions and structure stay static.
     dyn, static = eqx.partition(linkage, eqx.is_array)
 
+    # Every array fn depends on travels in its args (none is closed over), so that the
+    # load-stepping loop can run on stop-gradient copies and the implicit derivative
+    # sees them all.
     def fn(x, args):
-        data_, lam, u_, dyn_ = args
+        data_, lam, u_, dyn_, q_p0_, t_ = args
         linkage_ = eqx.combine(dyn_, static)
-        q, mu = full(x, lam, u_)
-        r = equilibrium_residual(linkage_, data_, q, t, lam, u_, mu if closed else None)
-        rows = [scale * r[free]]
+        q, mu = full(x, lam, u_, q_p0_)
+        r = equilibrium_residual(
+            linkage_, data_, q, t_, lam, u_, mu if closed else None
+        )
+        rows = [_row_scale(data_.K)[free] * r[free]]
         if closed:
             rows.append(closure_errors_from_data(linkage_, data_, q))
         return jnp.concatenate(rows)
 
-    def solve(x_start, lam, args, solver_=solver):
+    def solve(x_start, lam, args, last):
+        if default_solver:
+            # Intermediate load increments only need a good start for the next one;
+            # traced tolerances keep one Newton trace for all increments.
+            tol_r = jnp.where(last, rtol, 1e-4)
+            tol_a = jnp.where(last, atol, 1e-4)
+            solver_ = optx.Newton(rtol=tol_r, atol=tol_a, linear_solver=linear_solver)
+        else:
+            solver_ = solver
+        data_, u_, dyn_, q_p0_, t_ = args
         return optx.root_find(
             fn,
             solver_,
             x_start,
-            (args[0], lam, args[1], args[2]),
+            (data_, lam, u_, dyn_, q_p0_, t_),
             max_steps=max_steps,
             throw=False,
-            adjoint=optx.ImplicitAdjoint(linear_solver=linear_solver),
         )
 
     x0 = jnp.concatenate([q0[free], jnp.zeros(n_c, q0.dtype)])
-    args = (data, u, dyn)
+    args = (data, u, dyn, q_p0, t)
+    one = jnp.ones((), q0.dtype)
     # Number of load increments: given, or from the size of the scaled residual.
     if load_steps is None:
-        r0 = fn(x0, (data, jnp.ones((), q0.dtype), u, dyn))
+        r0 = fn(x0, (data, one, u, dyn, q_p0, t))
         r0 = jax.lax.stop_gradient(jnp.where(jnp.isfinite(r0), r0, 0.0))
         size = jnp.max(jnp.abs(r0), initial=0.0) / load_increment
         if len(qi):  # prescribed jumps move whole mechanisms: a quarter increment
@@ -160,30 +201,34 @@ def _solve_statics(
     else:
         n_inc = jnp.asarray(load_steps, dtype=q0.dtype)
 
-    # Intermediate increments lambda = k / n, k = 1 .. n - 1, in a while loop: it runs
-    # only the increments needed (under vmap, those of the hardest case) and only
-    # moves the starting point of the final solve, so it sees no gradients.
+    # Load increments lambda = k / n, k = 1 .. n, in one while loop: it runs only the
+    # increments needed (under vmap, those of the hardest case), and its single Newton
+    # trace keeps the compiled program small. The loop sees no gradients: they come
+    # from the implicit function theorem at the converged solution (below).
     args_ng = jax.lax.stop_gradient(args)
 
     def cond(carry):
-        k, _, _ = carry
-        return k < n_inc
+        k, _, _, _ = carry
+        return k <= n_inc
 
     def body(carry):
-        k, x, n_it = carry
-        sol = solve(x, k / n_inc, args_ng, intermediate)
-        return k + 1, sol.value, n_it + sol.stats["num_steps"]
+        k, x, n_it, _ = carry
+        sol = solve(x, k / n_inc, args_ng, k >= n_inc)
+        return k + 1, sol.value, n_it + sol.stats["num_steps"], sol.result
 
     zero_it = jnp.zeros((), dtype=jnp.asarray(0).dtype)
-    _, x_start, pre_steps = lax.while_loop(
-        cond, body, (jnp.ones((), q0.dtype), jax.lax.stop_gradient(x0), zero_it)
+    init = (
+        one,
+        jax.lax.stop_gradient(x0),
+        zero_it,
+        optx.RESULTS.successful,
     )
-    # The final solve at the full load carries the implicit adjoint.
-    sol = solve(x_start, jnp.ones((), q0.dtype), args)
+    _, x_star, steps, final_result = lax.while_loop(cond, body, init)
+    x_sol = _implicit_solution(fn, x_star, (data, one, u, dyn, q_p0, t), linear_solver)
+    sol = _Solved(x_sol, final_result)
     q, mu = full(sol.value, 1.0, u)
     ok = sol.result == optx.RESULTS.successful
     out_of_steps = sol.result == optx.RESULTS.max_steps_reached
-    steps = pre_steps + sol.stats["num_steps"]
     r = equilibrium_residual(linkage, data, q, t, 1.0, u, mu if closed else None)
     e = closure_errors_from_data(linkage, data, q)
     finite = jnp.all(jnp.isfinite(q)) & jnp.all(jnp.isfinite(r))
