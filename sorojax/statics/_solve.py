@@ -6,10 +6,12 @@ units. The Jacobian comes from autodiff. For large loads the load factor lambda 
 1/n, 2/n, ..., 1, each solve warm-started from the last; by default n is chosen from the
 size of the scaled residual at the start (automatic load stepping), so the straight rod
 does not jump to a far (e.g. looped) equilibrium branch.
-Gradients flow through the final solve by the implicit function theorem
-(``optx.ImplicitAdjoint``); the earlier load steps only provide its starting point.
-The intermediate increments run in a ``lax.while_loop`` (only as many as needed,
-also under ``vmap``) on stop-gradient data.
+All increments (1/n, ..., 1) run in one ``lax.while_loop`` with one Newton trace
+(loose tolerances for the intermediate increments, the requested ones for the last;
+only as many increments as needed, also under ``vmap``) on stop-gradient data.
+Gradients come from the implicit function theorem at the converged root, by a custom
+JVP outside that loop (what ``optx.ImplicitAdjoint`` does, without a second Newton
+trace in the compiled program: a four-bar's statics compiles in 17 s instead of 24 s).
 """
 
 import equinox as eqx
