@@ -238,3 +238,20 @@ def test_tableau_is_stiffly_accurate_and_consistent():
     np.testing.assert_allclose(R._B_HAT.sum(), 1.0, atol=1e-14)
     np.testing.assert_allclose(R._ALPHA[-1] + R._GAMMA_MAT[-1], R._B, atol=1e-14)
     assert math.isclose(R.ROS34PW2.gamma, 0.435866521508459, rel_tol=1e-14)
+
+
+def test_auto_decides_from_the_structure_when_traced():
+    """Under jit with a traced E no eigenvalues can be computed on the host: "auto"
+    takes ROS34PW2 for a soft linkage at rtol >= 1e-5 and Tsit5 at a tighter rtol
+    (documented in sorojax.integrate.DEFAULT_SOLVER)."""
+    q0 = jnp.zeros(2)
+    picks = []
+
+    def pick(E):
+        lk = _rod(E=E)
+        picks.append(sj.integrate.auto_solver(lk, q0, 0.0, 1.0, 1e-3))
+        picks.append(sj.integrate.auto_solver(lk, q0, 0.0, 1.0, 1e-8))
+        return E
+
+    jax.jit(pick)(1e6)
+    assert picks == ["ros34pw2", "tsit5"]
