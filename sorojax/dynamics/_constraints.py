@@ -12,7 +12,10 @@ nested derivatives triple the compile time of the statics Newton). The universal
 joint's motions are products ``R_u(a) R_v(b)``, not exponentials of the span, so its
 errors are the exact ``(u . R v, p)``: the two free axes stay perpendicular and the
 centres coincide.
-A and Adot qd come from forward-mode autodiff of e (exact; no hand-derived terms).
+A and Adot qd come either from forward-mode autodiff of e (:func:`constraint_terms`,
+the reference the tests compare with) or, in the dynamics, from the body Jacobians,
+twists and their rates that the mass matrix needs anyway
+(:func:`constraint_terms_from_kinematics`); tests check that both agree.
 """
 
 import equinox as eqx
@@ -22,7 +25,7 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from ..kinematics._api import _as_q
-from ..lie import log_se3
+from ..lie import Ad_inv, ad, hat, log_se3
 from ..model._joint import perpendicular_pair
 from ..model._linkage import Linkage
 from ..model._precompute import LinkageData, precompute
@@ -35,27 +38,89 @@ def _inv(g):
     return out.at[:3, :3].set(R.T).at[:3, 3].set(-R.T @ p)
 
 
+def _frames(linkage: Linkage, c, g):
+    """Poses of a closure's frames A and B (world) from the point poses."""
+    gA = g[linkage.tip_point(c.link_A)] @ c.g_A
+    gB = c.g_B if c.link_B == 0 else g[linkage.tip_point(c.link_B)] @ c.g_B
+    return gA, gB
+
+
+def _closure_error(c, rel) -> Array:
+    """Errors of one closed-loop joint from the relative pose ``g_B^-1 g_A``."""
+    R, p = rel[:3, :3], rel[:3, 3]
+    if c.joint.kind == "U":
+        u, v = perpendicular_pair(np.asarray(c.joint.axis))
+        return jnp.concatenate([(u @ R @ v)[None], p])
+    if c.joint.kind == "H":
+        return jnp.asarray(c.constrained_basis()).T @ log_se3(rel)
+    w = 0.5 * jnp.stack([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    return jnp.asarray(c.constrained_basis()).T @ jnp.concatenate([w, p])
+
+
 def closure_errors_from_poses(linkage: Linkage, g) -> Array:
     """Errors of all closed-loop joints, ``(n_constraints,)``, from point poses."""
     out = []
     for c in linkage.closed_loops:
-        gA = g[linkage.tip_point(c.link_A)] @ c.g_A
-        gB = c.g_B if c.link_B == 0 else g[linkage.tip_point(c.link_B)] @ c.g_B
-        rel = _inv(gB) @ gA
-        R, p = rel[:3, :3], rel[:3, 3]
-        if c.joint.kind == "U":
-            u, v = perpendicular_pair(np.asarray(c.joint.axis))
-            out.append(jnp.concatenate([(u @ R @ v)[None], p]))
-        elif c.joint.kind == "H":
-            out.append(jnp.asarray(c.constrained_basis()).T @ log_se3(rel))
-        else:
-            w = 0.5 * jnp.stack(
-                [R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]
-            )
-            out.append(jnp.asarray(c.constrained_basis()).T @ jnp.concatenate([w, p]))
+        gA, gB = _frames(linkage, c, g)
+        out.append(_closure_error(c, _inv(gB) @ gA))
     if not out:
         return jnp.zeros((0,), g.dtype)
     return jnp.concatenate(out)
+
+
+def constraint_terms_from_kinematics(linkage: Linkage, g, J, eta, etadot):
+    """``(e, A, Adot qd)`` from the point poses, body Jacobians, twists and rates.
+
+    For each loop, ``rel = g_B^-1 g_A`` moves with the body twist
+    ``xi = eta_A - Ad(rel)^-1 eta_B`` (frames A and B: the tips times their constant
+    offsets), so ``A = D (J_A - Ad(rel)^-1 J_B)`` with ``D`` the derivative of the
+    loop's errors along ``rel exp(z)`` at z = 0 (a 6-column forward-mode Jacobian of
+    a 4x4 kernel). In time, with qdd = 0,
+    ``xidot = etadot_A - Ad(rel)^-1 etadot_B + ad(xi) Ad(rel)^-1 eta_B`` and
+    ``Adot qd = D xidot + d^2/ds^2 e(rel exp(s xi))`` at s = 0 (exact with the
+    second-order expansion of exp). Everything comes from the kinematic pass the
+    mass matrix needs; no derivative of the whole kinematics is taken.
+    """
+    es, As, bs = [], [], []
+    eye = jnp.eye(4, dtype=g.dtype)
+    zero6 = jnp.zeros(6, dtype=g.dtype)
+    s0, one = jnp.zeros((), g.dtype), jnp.ones((), g.dtype)
+    for c in linkage.closed_loops:
+        gA, gB = _frames(linkage, c, g)
+        iA = linkage.tip_point(c.link_A)
+        TA = Ad_inv(c.g_A)
+        JA, eA, edA = TA @ J[iA], TA @ eta[iA], TA @ etadot[iA]
+        if c.link_B == 0:
+            JB, eB, edB = jnp.zeros_like(JA), zero6, zero6
+        else:
+            iB = linkage.tip_point(c.link_B)
+            TB = Ad_inv(c.g_B)
+            JB, eB, edB = TB @ J[iB], TB @ eta[iB], TB @ etadot[iB]
+        rel = _inv(gB) @ gA
+        Ai = Ad_inv(rel)
+        xi = eA - Ai @ eB
+        xid = edA - Ai @ edB + ad(xi) @ (Ai @ eB)
+
+        def err(r, c=c):
+            return _closure_error(c, r)
+
+        D = jax.jacfwd(lambda z, rel=rel, err=err: err(rel @ (eye + hat(z))))(zero6)
+        X = hat(xi)
+
+        def along(s, rel=rel, X=X, err=err):
+            return err(rel @ (eye + s * X + (0.5 * s * s) * (X @ X)))
+
+        second = jax.jvp(
+            lambda s, along=along: jax.jvp(along, (s,), (one,))[1], (s0,), (one,)
+        )[1]
+        es.append(err(rel))
+        As.append(D @ (JA - Ai @ JB))
+        bs.append(D @ xid + second)
+    n = J.shape[-1]
+    if not es:
+        z = jnp.zeros((0,), g.dtype)
+        return z, jnp.zeros((0, n), g.dtype), z
+    return jnp.concatenate(es), jnp.concatenate(As), jnp.concatenate(bs)
 
 
 def closure_errors_from_data(linkage: Linkage, data: LinkageData, q) -> Array:

@@ -25,7 +25,10 @@ from ..kinematics._recursion import (
 from ..model._linkage import Linkage
 from ..model._precompute import LinkageData, precompute
 from ._actuation import actuation_force, effective_inputs
-from ._constraints import constraint_jacobian_from_data, constraint_terms
+from ._constraints import (
+    constraint_jacobian_from_data,
+    constraint_terms_from_kinematics,
+)
 from ._external import custom_wrenches, external_wrenches
 from ._mass import _gyroscopic, _mass_from_J, _weighted_inertia
 
@@ -45,13 +48,17 @@ def mass_and_force(
     qd,
     generalized_force: GeneralizedForce | None = None,
     u=None,
+    rates=None,
 ) -> tuple[Array, Array]:
     """``(M, f)`` with ``M qdd = f``: mass matrix and all other generalised forces.
 
     ``u`` are the actuation inputs at ``t`` (None: no actuator forces); prescribed
-    joints add nothing here (their efforts are constraint multipliers).
+    joints add nothing here (their efforts are constraint multipliers). ``rates``:
+    ``kinematics_and_rates(data, q, qd)`` if the caller has it already.
     """
-    g, J, eta, etadot_v = kinematics_and_rates(data, q, qd)
+    if rates is None:
+        rates = kinematics_and_rates(data, q, qd)
+    g, J, eta, etadot_v = rates
     cache: list = []
 
     def kin_fn():
@@ -193,12 +200,13 @@ def constrained_dynamics(
         q, qd = q.at[qi].set(qp), qd.at[qi].set(qdp)
         rows.append(jnp.eye(n, dtype=q.dtype)[qi])
         rhs.append(qddp)
+    rates = kinematics_and_rates(data, q, qd)
     if linkage.closed_loops:
-        e, A, bias = constraint_terms(linkage, data, q, qd)
+        e, A, bias = constraint_terms_from_kinematics(linkage, *rates)
         Tb = linkage.baumgarte_time
         rows.append(A)
         rhs.append(-bias - (2.0 / Tb) * (A @ qd) - e / Tb**2)
-    M, f = mass_and_force(linkage, data, t, q, qd, generalized_force, u)
+    M, f = mass_and_force(linkage, data, t, q, qd, generalized_force, u, rates)
     if rows:
         G, b = jnp.concatenate(rows), jnp.concatenate(rhs)
         X = spd_solve(M, jnp.concatenate([f[:, None], G.T], axis=1))
