@@ -75,19 +75,15 @@ def equilibrium_residual(
     return r
 
 
-class _Solved(eqx.Module):
-    value: Array
-    result: optx.RESULTS
-
-
 def _implicit_solution(fn, x_star, args, linear_solver):
     """``x_star`` (a root of ``fn(x, args)``) with implicit-function derivatives.
 
-    The value is ``x_star`` itself; its derivative with respect to ``args`` and to
-    everything ``fn`` closes over (the linkage's arrays) is ``dx = -J^-1 (df/dargs
-    dargs)`` with ``J = df/dx`` at ``x_star`` (a custom JVP; reverse mode follows by
-    transposition, with lineax's transposable linear solve). Nothing of it enters the
-    primal program: only a differentiated solve traces the Jacobian.
+    The value is ``x_star`` itself; its derivative with respect to ``args`` (and to
+    any array ``fn`` closes over, lifted by ``jax.closure_convert``) is
+    ``dx = -J^-1 (df/dargs dargs)`` with ``J = df/dx`` at ``x_star`` (a custom JVP;
+    reverse mode follows by transposition, with lineax's transposable linear solve).
+    Nothing of it enters the primal program: only a differentiated solve traces the
+    Jacobian.
     """
     conv, consts = jax.closure_convert(fn, x_star, args)
 
@@ -169,6 +165,11 @@ def _solve_statics(
             rows.append(closure_errors_from_data(linkage_, data_, q))
         return jnp.concatenate(rows)
 
+    def with_load(args_, lam):
+        """The residual's args from ``(data, u, dyn, q_p0, t)`` and the load factor."""
+        data_, u_, dyn_, q_p0_, t_ = args_
+        return (data_, lam, u_, dyn_, q_p0_, t_)
+
     def solve(x_start, lam, args, last):
         if default_solver:
             # Intermediate load increments only need a good start for the next one;
@@ -178,14 +179,8 @@ def _solve_statics(
             solver_ = optx.Newton(rtol=tol_r, atol=tol_a, linear_solver=linear_solver)
         else:
             solver_ = solver
-        data_, u_, dyn_, q_p0_, t_ = args
         return optx.root_find(
-            fn,
-            solver_,
-            x_start,
-            (data_, lam, u_, dyn_, q_p0_, t_),
-            max_steps=max_steps,
-            throw=False,
+            fn, solver_, x_start, with_load(args, lam), max_steps=max_steps, throw=False
         )
 
     x0 = jnp.concatenate([q0[free], jnp.zeros(n_c, q0.dtype)])
@@ -193,7 +188,7 @@ def _solve_statics(
     one = jnp.ones((), q0.dtype)
     # Number of load increments: given, or from the size of the scaled residual.
     if load_steps is None:
-        r0 = fn(x0, (data, one, u, dyn, q_p0, t))
+        r0 = fn(x0, with_load(args, one))
         r0 = jax.lax.stop_gradient(jnp.where(jnp.isfinite(r0), r0, 0.0))
         size = jnp.max(jnp.abs(r0), initial=0.0) / load_increment
         if len(qi):  # prescribed jumps move whole mechanisms: a quarter increment
@@ -226,11 +221,10 @@ def _solve_statics(
         optx.RESULTS.successful,
     )
     _, x_star, steps, final_result = lax.while_loop(cond, body, init)
-    x_sol = _implicit_solution(fn, x_star, (data, one, u, dyn, q_p0, t), linear_solver)
-    sol = _Solved(x_sol, final_result)
-    q, mu = full(sol.value, 1.0, u)
-    ok = sol.result == optx.RESULTS.successful
-    out_of_steps = sol.result == optx.RESULTS.max_steps_reached
+    x_sol = _implicit_solution(fn, x_star, with_load(args, one), linear_solver)
+    q, mu = full(x_sol, 1.0, u)
+    ok = final_result == optx.RESULTS.successful
+    out_of_steps = final_result == optx.RESULTS.max_steps_reached
     r = equilibrium_residual(linkage, data, q, t, 1.0, u, mu if closed else None)
     e = closure_errors_from_data(linkage, data, q)
     finite = jnp.all(jnp.isfinite(q)) & jnp.all(jnp.isfinite(r))
