@@ -18,6 +18,8 @@ twists and their rates that the mass matrix needs anyway
 (:func:`constraint_terms_from_kinematics`); tests check that both agree.
 """
 
+import functools
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -68,6 +70,33 @@ def closure_errors_from_poses(linkage: Linkage, g) -> Array:
     return jnp.concatenate(out)
 
 
+def _loop_terms(c, rel, A_side, B_side):
+    """``(e, A, Adot qd)`` of one loop.
+
+    From its relative pose and the ``(J, eta, etadot)`` of its two frames (see
+    :func:`constraint_terms_from_kinematics`).
+    """
+    JA, eA, edA = A_side
+    JB, eB, edB = B_side
+    Ai = Ad_inv(rel)
+    xi = eA - Ai @ eB
+    xid = edA - Ai @ edB + ad(xi) @ (Ai @ eB)
+    eye = jnp.eye(4, dtype=rel.dtype)
+    one = jnp.ones((), rel.dtype)
+    err = functools.partial(_closure_error, c)
+    D = jax.jacfwd(lambda z: err(rel @ (eye + hat(z))))(jnp.zeros(6, rel.dtype))
+    X = hat(xi)
+
+    def along(s):
+        return err(rel @ (eye + s * X + (0.5 * s * s) * (X @ X)))
+
+    def rate(s):
+        return jax.jvp(along, (s,), (one,))[1]
+
+    second = jax.jvp(rate, (jnp.zeros((), rel.dtype),), (one,))[1]
+    return err(rel), D @ (JA - Ai @ JB), D @ xid + second
+
+
 def constraint_terms_from_kinematics(linkage: Linkage, g, J, eta, etadot):
     """``(e, A, Adot qd)`` from the point poses, body Jacobians, twists and rates.
 
@@ -81,46 +110,25 @@ def constraint_terms_from_kinematics(linkage: Linkage, g, J, eta, etadot):
     second-order expansion of exp). Everything comes from the kinematic pass the
     mass matrix needs; no derivative of the whole kinematics is taken.
     """
-    es, As, bs = [], [], []
-    eye = jnp.eye(4, dtype=g.dtype)
-    zero6 = jnp.zeros(6, dtype=g.dtype)
-    s0, one = jnp.zeros((), g.dtype), jnp.ones((), g.dtype)
+
+    def side(link, offset):
+        """``(J, eta, etadot)`` of a loop frame (zero for the world)."""
+        if link == 0:
+            zero6 = jnp.zeros(6, dtype=g.dtype)
+            return jnp.zeros_like(J[0]), zero6, zero6
+        i = linkage.tip_point(link)
+        T = Ad_inv(offset)
+        return T @ J[i], T @ eta[i], T @ etadot[i]
+
+    terms = []
     for c in linkage.closed_loops:
         gA, gB = _frames(linkage, c, g)
-        iA = linkage.tip_point(c.link_A)
-        TA = Ad_inv(c.g_A)
-        JA, eA, edA = TA @ J[iA], TA @ eta[iA], TA @ etadot[iA]
-        if c.link_B == 0:
-            JB, eB, edB = jnp.zeros_like(JA), zero6, zero6
-        else:
-            iB = linkage.tip_point(c.link_B)
-            TB = Ad_inv(c.g_B)
-            JB, eB, edB = TB @ J[iB], TB @ eta[iB], TB @ etadot[iB]
         rel = _inv(gB) @ gA
-        Ai = Ad_inv(rel)
-        xi = eA - Ai @ eB
-        xid = edA - Ai @ edB + ad(xi) @ (Ai @ eB)
-
-        def err(r, c=c):
-            return _closure_error(c, r)
-
-        D = jax.jacfwd(lambda z, rel=rel, err=err: err(rel @ (eye + hat(z))))(zero6)
-        X = hat(xi)
-
-        def along(s, rel=rel, X=X, err=err):
-            return err(rel @ (eye + s * X + (0.5 * s * s) * (X @ X)))
-
-        second = jax.jvp(
-            lambda s, along=along: jax.jvp(along, (s,), (one,))[1], (s0,), (one,)
-        )[1]
-        es.append(err(rel))
-        As.append(D @ (JA - Ai @ JB))
-        bs.append(D @ xid + second)
-    n = J.shape[-1]
-    if not es:
+        terms.append(_loop_terms(c, rel, side(c.link_A, c.g_A), side(c.link_B, c.g_B)))
+    if not terms:
         z = jnp.zeros((0,), g.dtype)
-        return z, jnp.zeros((0, n), g.dtype), z
-    return jnp.concatenate(es), jnp.concatenate(As), jnp.concatenate(bs)
+        return z, jnp.zeros((0, J.shape[-1]), g.dtype), z
+    return tuple(jnp.concatenate(parts) for parts in zip(*terms, strict=True))
 
 
 def closure_errors_from_data(linkage: Linkage, data: LinkageData, q) -> Array:
