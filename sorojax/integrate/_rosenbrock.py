@@ -205,8 +205,13 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
         if mech is not None:
             term, direction = mech
             return term.vf_and_matrices(t * direction, y, args)
-        f = terms.vf(t, y, args)
-        return f, jax.jacfwd(lambda y_: terms.vf(t, y_, args))(y)
+
+        def vf_twice(y_):
+            v = terms.vf(t, y_, args)
+            return v, v
+
+        Jac, f = jax.jacfwd(vf_twice, has_aux=True)(y)  # one pass: f and its Jacobian
+        return f, Jac
 
     def init(self, terms, t0, t1, y0, args):
         """First-same-as-last state: the vector field and its linear part at y0."""
