@@ -1149,7 +1149,11 @@ def plot_scaling(res, path):
     ax1.set_xlabel("n_dof")
     ax1.set_ylabel("wall time [s]")
     ax1.set_title(
-        "free-fall rod: tsit5 rtol 1e-6 undamped; ros34pw2 rtol 1e-3 damped",
+        "free-fall rod: "
+        + "; ".join(
+            f"{x['solver']} rtol {x['rtol']:g}, eta {x['eta']:g}"
+            for x in res["settings"]["ndof"].get("series", [])
+        ),
         fontsize=9,
     )
     ax1.grid(True, which="both", alpha=0.3)
