@@ -262,10 +262,10 @@ def test_large_prescribed_jump_is_load_stepped(four_bar):
 
 @pytest.mark.parametrize("kind", ["R", "P", "H", "U", "C", "A", "S", "N"])
 def test_constraint_terms_from_kinematics_equal_autodiff(kind):
-    """The dynamics' A and Adot qd from the body Jacobians, twists and rates equal
-    forward-mode autodiff of e(q) (twice) on a two-link chain closed to a third link's
-    tip (frames with offsets), at a random state. Both are exact: roundoff, 1e-12 of
-    the largest entry."""
+    """The dynamics' A and Adot qd from the body Jacobians, twists and rates, and the
+    statics' A^T mu from tip wrenches, equal forward-mode autodiff of e(q) (twice) on
+    a two-link chain closed to a third link's tip (frames with offsets), at a random
+    state. Both are exact: roundoff, 1e-12 of the largest entry."""
     from sorojax.dynamics._constraints import (
         constraint_terms,
         constraint_terms_from_kinematics,
@@ -294,7 +294,16 @@ def test_constraint_terms_from_kinematics_equal_autodiff(kind):
             lk, *kinematics_and_rates(data, q, qd)
         )
     )(q, qd)
-    for name, a, b in zip(("e", "A", "Adot qd"), ref, got, strict=True):
+    # The statics maps the multipliers as tip wrenches: A^T mu without forming A.
+    mu = jnp.asarray(rng.normal(size=lk.n_constraints))
+    force = jax.jit(
+        lambda q, mu: (
+            equilibrium_residual(lk, data, q, mu=jnp.zeros_like(mu))
+            - equilibrium_residual(lk, data, q, mu=mu)
+        )
+    )(q, mu)
+    ref, got = (*ref, ref[1].T @ mu), (*got, force)
+    for name, a, b in zip(("e", "A", "Adot qd", "A^T mu"), ref, got, strict=True):
         scale = max(float(jnp.abs(a).max()), 1e-12)
         err = float(jnp.abs(a - b).max()) / scale
         assert err < 1e-12, f"{kind}: {name} differs by {err:.1e} (relative)"

@@ -90,24 +90,45 @@ def _world_point(g, point: int | None, offset) -> Array:
     return g[point, :3, :3] @ offset + g[point, :3, 3]
 
 
-def cable_length(linkage: Linkage, data: LinkageData, cable: Cable, q, g=None):
-    """Total length of ``cable`` at ``q``: spans plus straight segments [m]."""
+def _route_points(linkage: Linkage, cable: Cable) -> list:
+    """``((point, offset) start, (point, offset) end)`` of each route element.
+
+    ``point`` is a significant-point index or None (ground); consecutive elements
+    are joined by straight segments (end of one to start of the next).
+    """
+    ends = []
+    for r in cable.route:
+        if isinstance(r, CableSpan):
+            ends.append(_span_ends(linkage, r))
+        else:
+            point = None if r.link == 0 else linkage.anchor_index(r)
+            ends.append(((point, r.offset), (point, r.offset)))
+    return ends
+
+
+def _segments(linkage: Linkage, cable: Cable) -> list:
+    """Straight segments ``((point_a, offset_a), (point_b, offset_b))`` of a cable."""
+    ends = _route_points(linkage, cable)
+    return [(a[1], b[0]) for a, b in zip(ends[:-1], ends[1:], strict=True)]
+
+
+def _spans_length(linkage: Linkage, data: LinkageData, cable: Cable, q) -> Array:
+    """Length of the cable inside the body (its spans) [m]; strains only."""
     total = jnp.zeros((), q.dtype)
-    ends = []  # (start world point, end world point) per route element
-    if len(cable.route) > 1 and g is None:
-        g = poses_with_records(data, q)[0]
     for r in cable.route:
         if isinstance(r, CableSpan):
             total = total + span_length(linkage, data, r, q)
-            if g is not None:
-                (p0, o0), (p1, o1) = _span_ends(linkage, r)
-                ends.append((_world_point(g, p0, o0), _world_point(g, p1, o1)))
-        else:
-            point = None if r.link == 0 else linkage.anchor_index(r)
-            p = _world_point(g, point, r.offset)
-            ends.append((p, p))
-    for (_, a), (b, _) in zip(ends[:-1], ends[1:], strict=True):
-        total = total + _safe_norm(b - a)
+    return total
+
+
+def cable_length(linkage: Linkage, data: LinkageData, cable: Cable, q, g=None):
+    """Total length of ``cable`` at ``q``: spans plus straight segments [m]."""
+    total = _spans_length(linkage, data, cable, q)
+    segments = _segments(linkage, cable)
+    if segments and g is None:
+        g = poses_with_records(data, q)[0]
+    for (pa, oa), (pb, ob) in segments:
+        total = total + _safe_norm(_world_point(g, pb, ob) - _world_point(g, pa, oa))
     return total
 
 
@@ -120,6 +141,39 @@ def cable_lengths_from_data(linkage: Linkage, data: LinkageData, q) -> Array:
     if any(len(c.route) > 1 for c in cables):
         g = poses_with_records(data, q)[0]
     return jnp.stack([cable_length(linkage, data, c, q, g) for c in cables])
+
+
+def cable_loads(linkage: Linkage, data: LinkageData, q, tensions, g):
+    """Generalised force ``-sum_c T_c dl_c/dq`` split as ``(Q_spans, W)``.
+
+    ``Q_spans`` is the part of the spans inside the body (their length depends on
+    the strains alone: a gradient of the strain quadrature, no kinematics).
+    ``W`` ``(n_points, 6)`` holds body wrenches whose ``sum_p J_p^T W_p`` is the part
+    of the straight segments: a segment from ``a = r_a + R_a o_a`` to
+    ``b = r_b + R_b o_b`` has ``dl = u . (db - da)``, ``u = (b - a) / |b - a|``,
+    and ``db = R_b (v_b + w_b x o_b)``, so its tension acts at b with the body wrench
+    ``-T (o_b x f_b, f_b)``, ``f_b = R_b^T u``, and at a with the opposite sign (the
+    cable pulls its ends toward each other). Exact, like the length's gradient,
+    which the tests compare it with.
+    """
+    cables = [a for a in linkage.actuators if isinstance(a, Cable)]
+
+    def spans(q_):
+        lengths = [_spans_length(linkage, data, c, q_) for c in cables]
+        return tensions @ jnp.stack(lengths)
+
+    Q = -jax.grad(spans)(q)
+    W = jnp.zeros((data.point_weight.shape[0], 6), q.dtype)
+    for T, c in zip(tensions, cables, strict=True):
+        for (pa, oa), (pb, ob) in _segments(linkage, c):
+            u = _world_point(g, pb, ob) - _world_point(g, pa, oa)
+            n = _safe_norm(u)
+            u = u / jnp.where(n > 0, n, 1.0)
+            for point, o, sign in ((pb, ob, -T), (pa, oa, T)):
+                if point is not None:
+                    f = g[point, :3, :3].T @ u
+                    W = W.at[point].add(sign * jnp.concatenate([jnp.cross(o, f), f]))
+    return Q, W
 
 
 def _cable_tensions(linkage: Linkage, u) -> Array:
@@ -137,6 +191,11 @@ def has_cables(linkage: Linkage) -> bool:
     return any(isinstance(a, Cable) for a in linkage.actuators)
 
 
+def has_segments(linkage: Linkage) -> bool:
+    """Whether any cable has a straight segment (its force needs the poses)."""
+    return any(_segments(linkage, a) for a in linkage.actuators if isinstance(a, Cable))
+
+
 def effective_inputs(linkage: Linkage, t, q, qd, kin_fn, u) -> Array:
     """Inputs after the actuator-strength hook (prescribed entries kept from ``u``)."""
     if linkage.actuator_strength is None:
@@ -151,25 +210,45 @@ def effective_inputs(linkage: Linkage, t, q, qd, kin_fn, u) -> Array:
     return v.at[ui].set(u[ui]) if len(ui) else v
 
 
-def actuation_force(linkage: Linkage, data: LinkageData, t, q, qd, u, kin_fn) -> Array:
-    """Generalised force of all actuators at inputs ``u`` (hook applied).
+def actuation_loads(linkage: Linkage, data: LinkageData, t, q, qd, u, kin_fn, g):
+    """Generalised force of all actuators at inputs ``u`` (hook applied), in two parts.
 
+    Returns ``(Q, W)``: ``Q`` ``(n_dof,)`` acts on the coordinates directly (joint
+    actuators, cable spans, the custom actuation hook); ``W`` ``(n_points, 6)`` (or
+    None) holds body wrenches of cable segments outside the body, to be mapped by
+    ``J^T`` (or the backward recursion) together with the other point loads.
     Prescribed joints contribute nothing here: their efforts are unknowns of the
-    solvers. ``kin_fn()`` returns the :class:`Kinematics` the hooks read.
+    solvers. ``kin_fn()`` returns the :class:`Kinematics` the hooks read; ``g`` are
+    the point poses at ``q``.
     """
     Q = jnp.zeros_like(q)
+    W = None
     if not linkage.actuators and linkage.custom_actuation is None:
-        return Q
+        return Q, W
     u = effective_inputs(linkage, t, q, qd, kin_fn, u)
     for a, sl in zip(linkage.actuators, linkage.input_slices, strict=True):
         if isinstance(a, JointActuator) and not a.prescribed:
             jo = linkage.layout.links[a.link - 1].joint_offset
             Q = Q.at[jo : jo + a.n_inputs].add(u[sl])
     if has_cables(linkage):
-        T = _cable_tensions(linkage, u)
-        Q = Q - jax.grad(lambda q_: T @ cable_lengths_from_data(linkage, data, q_))(q)
+        Qc, Wc = cable_loads(linkage, data, q, _cable_tensions(linkage, u), g)
+        Q = Q + Qc
+        W = Wc if has_segments(linkage) else None
     if linkage.custom_actuation is not None:
         Q = Q + custom_actuation_force(linkage, data, t, q, qd, kin_fn(), u)
+    return Q, W
+
+
+def actuation_force(linkage: Linkage, data: LinkageData, t, q, qd, u, kin_fn) -> Array:
+    """Generalised force of all actuators at inputs ``u`` (hook applied).
+
+    ``kin_fn()`` returns the :class:`Kinematics` at ``(q, qd)`` (its Jacobians map
+    the cable segments' wrenches).
+    """
+    g = kin_fn().g if has_segments(linkage) else None
+    Q, W = actuation_loads(linkage, data, t, q, qd, u, kin_fn, g)
+    if W is not None:
+        Q = Q + jnp.einsum("pai,pa->i", kin_fn().J, W)
     return Q
 
 

@@ -84,7 +84,7 @@ def _loop_terms(c, rel, A_side, B_side):
     eye = jnp.eye(4, dtype=rel.dtype)
     one = jnp.ones((), rel.dtype)
     err = functools.partial(_closure_error, c)
-    D = jax.jacfwd(lambda z: err(rel @ (eye + hat(z))))(jnp.zeros(6, rel.dtype))
+    e, D = _error_and_derivative(c, rel)
     X = hat(xi)
 
     def along(s):
@@ -94,7 +94,50 @@ def _loop_terms(c, rel, A_side, B_side):
         return jax.jvp(along, (s,), (one,))[1]
 
     second = jax.jvp(rate, (jnp.zeros((), rel.dtype),), (one,))[1]
-    return err(rel), D @ (JA - Ai @ JB), D @ xid + second
+    return e, D @ (JA - Ai @ JB), D @ xid + second
+
+
+def _error_and_derivative(c, rel):
+    """``(e, D)``: a loop's errors at ``rel`` and their derivative along ``rel exp(z)``.
+
+    ``D`` is ``(n_c, 6)`` at z = 0, z the body twist of frame A relative to B.
+    """
+    eye = jnp.eye(4, dtype=rel.dtype)
+
+    def f(z):
+        e = _closure_error(c, rel @ (eye + hat(z)))
+        return e, e
+
+    D, e = jax.jacfwd(f, has_aux=True)(jnp.zeros(6, rel.dtype))
+    return e, D
+
+
+def closure_errors_and_wrenches(linkage: Linkage, g, mu):
+    """``(e, W)``: closure errors and the body wrenches of ``A^T mu``.
+
+    With ``A = D (J_A - Ad(rel)^-1 J_B)`` per loop (see
+    :func:`constraint_terms_from_kinematics`; ``J_A = Ad(g_A)^-1 J_tip`` for a
+    frame offset ``g_A``), ``A^T mu = sum_p J_p^T W_p`` with ``f = D^T mu`` acting
+    at tip A as ``Ad(g_A)^-T f`` and at tip B as ``-Ad(g_B)^-T Ad(rel)^-T f``
+    (equal and opposite): the multipliers' generalised force without forming A,
+    mapped by the same backward recursion as the other loads.
+    """
+    W = jnp.zeros((g.shape[0], 6), g.dtype)
+    errors, k = [], 0
+    for c in linkage.closed_loops:
+        gA, gB = _frames(linkage, c, g)
+        rel = _inv(gB) @ gA
+        e, D = _error_and_derivative(c, rel)
+        errors.append(e)
+        f = D.T @ mu[k : k + e.shape[0]]
+        k += e.shape[0]
+        W = W.at[linkage.tip_point(c.link_A)].add(Ad_inv(c.g_A).T @ f)
+        if c.link_B != 0:
+            fB = -(Ad_inv(c.g_B).T @ (Ad_inv(rel).T @ f))
+            W = W.at[linkage.tip_point(c.link_B)].add(fB)
+    if not errors:
+        return jnp.zeros((0,), g.dtype), W
+    return jnp.concatenate(errors), W
 
 
 def constraint_terms_from_kinematics(linkage: Linkage, g, J, eta, etadot):

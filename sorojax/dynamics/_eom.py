@@ -24,7 +24,7 @@ from ..kinematics._recursion import (
 )
 from ..model._linkage import Linkage
 from ..model._precompute import LinkageData, precompute
-from ._actuation import actuation_force, effective_inputs
+from ._actuation import actuation_loads, effective_inputs
 from ._constraints import (
     constraint_jacobian_from_data,
     constraint_terms_from_kinematics,
@@ -84,9 +84,13 @@ def mass_and_force(
         M = M + jnp.einsum("pai,pab,pbj->ij", J, Ma, J)
     if linkage.custom_wrench is not None:
         W = W + custom_wrenches(linkage, data, t, q, qd, kin_fn())
+    if u is not None:
+        Qa, Wa = actuation_loads(linkage, data, t, q, qd, u, kin_fn, g)
+        if Wa is not None:
+            W = W + Wa
     f = jnp.einsum("pai,pa->i", J, W) - data.K @ q - data.D @ qd
     if u is not None:
-        f = f + actuation_force(linkage, data, t, q, qd, u, kin_fn)
+        f = f + Qa
     if generalized_force is not None:
         tau = jnp.asarray(generalized_force(t, q, qd), dtype=f.dtype)
         if tau.shape != f.shape:

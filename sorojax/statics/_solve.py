@@ -24,15 +24,16 @@ from jax import lax
 from jaxtyping import Array, ArrayLike
 
 from .._results import RESULTS, StaticsSolution
-from ..dynamics._actuation import actuation_force
+from ..dynamics._actuation import actuation_loads
 from ..dynamics._constraints import (
-    closure_errors_from_data,
+    closure_errors_and_wrenches,
     constraint_jacobian_from_data,
     numerical_rank,
 )
 from ..dynamics._eom import as_inputs
-from ..dynamics._external import external_force, external_force_recursive
+from ..dynamics._external import custom_wrenches, external_wrenches
 from ..dynamics._generalized import kinematics_from_data
+from ..dynamics._wrench_recursion import force_from_wrenches, poses_with_records
 from ..kinematics._api import _as_q
 from ..model._linkage import Linkage
 from ..model._precompute import LinkageData, precompute
@@ -53,26 +54,51 @@ def equilibrium_residual(
     multipliers (default zeros). At equilibrium the rows of prescribed coordinates
     are their joint efforts.
     """
+    return _residual_and_closure(linkage, data, q, t, lam, u, mu)[0]
+
+
+def _residual_and_closure(linkage: Linkage, data: LinkageData, q, t, lam, u, mu):
+    """``(r, e)``: the equilibrium residual and the closure errors, one pose pass.
+
+    Every load is gathered as body wrenches at the significant points (gravity,
+    point wrenches, cable segments outside the body, the multipliers' ``A^T mu``)
+    and mapped to the coordinates together, by the backward wrench recursion (no
+    Jacobian formed) or, when a hook reads the kinematics, by ``J^T``; only joint
+    actuators and cable spans act on the coordinates directly.
+    """
     qd = jnp.zeros_like(q)
-    cache: list = []
-
-    def kin_fn():
-        if not cache:
-            cache.append(kinematics_from_data(data, q, qd, need_jdot=False))
-        return cache[0]
-
-    if linkage.custom_wrench is None:
-        F = external_force_recursive(linkage, data, t, q)
-    else:  # the hook may read Jacobians: form them
-        F = external_force(linkage, data, t, q, qd, kin_fn())
+    hooks = (
+        linkage.custom_wrench is not None
+        or linkage.actuator_strength is not None
+        or linkage.custom_actuation is not None
+    )
+    if hooks:  # the hooks may read Jacobians: form them once
+        kin = kinematics_from_data(data, q, qd, need_jdot=False)
+        g, records = kin.g, None
+    else:
+        g, records = poses_with_records(data, q)
+        kin = None
+    W = lam * external_wrenches(linkage, data, t, g)
+    if linkage.custom_wrench is not None:
+        W = W + lam * custom_wrenches(linkage, data, t, q, qd, kin)
+    Q = jnp.zeros_like(q)
     if linkage.actuators or linkage.custom_actuation is not None:
         u = jnp.zeros(linkage.n_inputs, q.dtype) if u is None else u
-        F = F + actuation_force(linkage, data, t, q, qd, u, kin_fn)
-    r = data.K @ q - lam * F
-    if linkage.closed_loops and mu is not None:
-        _, vjp = jax.vjp(lambda q_: closure_errors_from_data(linkage, data, q_), q)
-        r = r - vjp(mu)[0]
-    return r
+        Qa, Wa = actuation_loads(linkage, data, t, q, qd, u, lambda: kin, g)
+        Q = lam * Qa
+        if Wa is not None:
+            W = W + lam * Wa
+    e = jnp.zeros((0,), q.dtype)
+    if linkage.closed_loops:
+        mu_ = jnp.zeros(linkage.n_constraints, q.dtype) if mu is None else mu
+        e, Wc = closure_errors_and_wrenches(linkage, g, mu_)
+        if mu is not None:
+            W = W + Wc
+    if kin is None:
+        F = force_from_wrenches(data, records, W, q)
+    else:
+        F = jnp.einsum("pai,pa->i", kin.J, W)
+    return data.K @ q - F - Q, e
 
 
 def _implicit_solution(fn, x_star, args, linear_solver):
@@ -157,13 +183,10 @@ def _solve_statics(
         data_, lam, u_, dyn_, q_p0_, t_ = args
         linkage_ = eqx.combine(dyn_, static)
         q, mu = full(x, lam, u_, q_p0_)
-        r = equilibrium_residual(
+        r, e = _residual_and_closure(
             linkage_, data_, q, t_, lam, u_, mu if closed else None
         )
-        rows = [_row_scale(data_.K)[free] * r[free]]
-        if closed:
-            rows.append(closure_errors_from_data(linkage_, data_, q))
-        return jnp.concatenate(rows)
+        return jnp.concatenate([_row_scale(data_.K)[free] * r[free], e])
 
     def with_load(args_, lam):
         """The residual's args from ``(data, u, dyn, q_p0, t)`` and the load factor."""
@@ -225,8 +248,7 @@ def _solve_statics(
     q, mu = full(x_sol, 1.0, u)
     ok = final_result == optx.RESULTS.successful
     out_of_steps = final_result == optx.RESULTS.max_steps_reached
-    r = equilibrium_residual(linkage, data, q, t, 1.0, u, mu if closed else None)
-    e = closure_errors_from_data(linkage, data, q)
+    r, e = _residual_and_closure(linkage, data, q, t, 1.0, u, mu if closed else None)
     finite = jnp.all(jnp.isfinite(q)) & jnp.all(jnp.isfinite(r))
     # Only the final step decides: from whatever start, a converged final solve is a
     # true equilibrium of the full load.
