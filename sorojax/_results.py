@@ -35,7 +35,8 @@ class StaticsSolution(eqx.Module):
         lam: closed-loop multipliers (constraint wrench components, one per row;
             the minimum-norm choice where rows are redundant).
         constraint_error: max-norm of the closed-loop errors e(q).
-        constraint_rank: numerical rank of the constraint Jacobian (less than
+        constraint_rank: numerical rank of the constraint Jacobian with respect to
+            the free (not prescribed) coordinates (less than
             ``Linkage.n_constraints`` when rows are redundant, e.g. a planar loop).
     """
 

@@ -11,6 +11,7 @@ import math
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optimistix as optx
 import pytest
 from references import (
     cosserat_planar_static,
@@ -31,8 +32,17 @@ def tip_xy(linkage, q):
 
 
 # ----------------------------------------------------------------- end moment circle
-@pytest.mark.parametrize("follower", [False, True])
-def test_end_moment_gives_exact_circle(follower):
+@pytest.mark.parametrize(
+    "follower, solver",
+    [
+        (False, None),
+        (True, None),
+        (False, optx.LevenbergMarquardt(rtol=1e-12, atol=1e-12)),
+    ],
+    ids=["dead-newton", "follower-newton", "dead-levenberg-marquardt"],
+)
+def test_end_moment_gives_exact_circle(follower, solver):
+    """Also with a user's optimistix solver (least squares) in place of Newton."""
     E, r, L = 1e6, 0.01, 0.5
     EI = E * math.pi * r**4 / 4
     M = 0.8 * EI / L * math.pi  # bends through 0.8 pi
@@ -43,7 +53,7 @@ def test_end_moment_gives_exact_circle(follower):
     lk = sj.Linkage(
         [rod], point_wrenches=[sj.PointWrench(1, [0, 0, M, 0, 0, 0], follower=follower)]
     )
-    sol = sj.solve_statics(lk)
+    sol = sj.solve_statics(lk, solver=solver)
     k = M / EI
     expected = np.array([math.sin(k * L) / k, (1 - math.cos(k * L)) / k, 0.0])
     got = tip_xy(lk, sol.q)

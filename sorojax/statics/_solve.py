@@ -27,7 +27,6 @@ from .._results import RESULTS, StaticsSolution
 from ..dynamics._actuation import actuation_loads
 from ..dynamics._constraints import (
     closure_errors_and_wrenches,
-    constraint_jacobian_from_data,
     numerical_rank,
 )
 from ..dynamics._eom import as_inputs
@@ -129,6 +128,124 @@ def _implicit_solution(fn, x_star, args, linear_solver):
     return ident(jax.lax.stop_gradient(x_star), args, list(consts))
 
 
+def _with_derivative(g, value, inputs):
+    """``value`` (``g(*inputs)`` computed elsewhere) carrying the derivative of ``g``.
+
+    The primal program keeps ``value`` as it is (no second evaluation of ``g``);
+    a differentiated program gets ``dg = jvp(g)(inputs; dinputs)`` (linear, so
+    reverse mode follows by transposition).
+    """
+    conv, consts = jax.closure_convert(g, *inputs)
+
+    @jax.custom_jvp
+    def ident(v, ins, c):
+        return v
+
+    @ident.defjvp
+    def _ident_jvp(primals, tangents):
+        v, ins, c = primals
+        _, t_ins, t_c = tangents
+        _, dv = jax.jvp(lambda i, c_: conv(*i, *c_), (ins, c), (t_ins, t_c))
+        return v, dv
+
+    return ident(jax.lax.stop_gradient(value), tuple(inputs), list(consts))
+
+
+def _jacobian_and_values(f_aux, x):
+    """``(J, (f, aux))`` of ``f_aux(x) -> (f, aux)`` in one forward-mode pass."""
+
+    def f_and_out(x_):
+        f, aux = f_aux(x_)
+        return f, (f, aux)
+
+    return jax.jacfwd(f_and_out, has_aux=True)(x)
+
+
+def _newton(fn_aux, x0, args, *, n_inc, linear_solver, max_steps, rtol, atol):
+    """Newton's method over load increments lambda = k / n, k = 1 .. n, one loop.
+
+    ``fn_aux(x, lam) -> (f, aux)``. Each iteration evaluates f, its Jacobian and
+    ``aux`` at the current x in one forward-mode pass (the only trace of the residual
+    in the compiled program). An increment has converged when the last Newton step
+    was small (``|dx_i| <= atol + rtol |x_i|``) and ``|f| <= atol`` at the point it
+    led to (intermediate increments: 1e-4, only a start for the next); the loop then
+    ends on the final increment, so that f, aux and the Jacobian returned are those
+    at the returned x. With ``n_inc = None`` a first evaluation at full load chooses
+    the number of increments (``n_inc_of(f)``) before any step.
+
+    Returns ``(x, f, aux, J, steps, status)``, status 0 converged, 1 out of steps,
+    2 non-finite values, 3 failed linear solve.
+    """
+    n_inc_given, n_inc_of = n_inc
+    dtype = x0.dtype
+    one = jnp.ones((), dtype)
+
+    def evaluate(x, lam):
+        return _jacobian_and_values(lambda x_: fn_aux(x_, lam), x)
+
+    shapes = jax.eval_shape(evaluate, x0, one)
+    zeros = jax.tree_util.tree_map(lambda s: jnp.zeros(s.shape, s.dtype), shapes)
+    int_ = jnp.asarray(0).dtype
+    # carry: k (0: probe at full load), n, x, steps in this increment, total steps,
+    # last step small, status (-1 running), J, (f, aux)
+    init = (
+        jnp.zeros((), dtype) if n_inc_given is None else one,
+        one if n_inc_given is None else jnp.asarray(n_inc_given, dtype),
+        x0,
+        jnp.zeros((), int_),
+        jnp.zeros((), int_),
+        jnp.zeros((), bool),
+        jnp.full((), -1, int_),
+        zeros[0],
+        zeros[1],
+    )
+
+    def cond(c):
+        return c[6] < 0
+
+    def body(c):
+        k, n, x, it, total, small, _, _, _ = c
+        probe = k == 0
+        last = k >= n
+        J, (f, aux) = evaluate(x, jnp.where(probe, one, k / n))
+        tol_a = jnp.where(last, atol, 1e-4)
+        tol_r = jnp.where(last, rtol, 1e-4)
+        converged = ~probe & small & (jnp.max(jnp.abs(f), initial=0.0) <= tol_a)
+        finite = jnp.all(jnp.isfinite(f)) & jnp.all(jnp.isfinite(J))
+        sol = lx.linear_solve(
+            lx.MatrixLinearOperator(jnp.where(finite, J, 0.0)),
+            jnp.where(finite, f, 0.0),
+            linear_solver,
+            throw=False,
+        )
+        dx = sol.value
+        solved = (sol.result == lx.RESULTS.successful) & jnp.all(jnp.isfinite(dx))
+        step = ~probe & ~converged & finite & solved & (it < max_steps)
+        status = jnp.select(
+            [probe, converged & last, converged, ~finite, it >= max_steps, ~solved],
+            [-1, 0, -1, 2, 1, 3],
+            -1,
+        ).astype(int_)
+        n_next = jnp.where(probe, n_inc_of(f), n)
+        k_next = jnp.where(probe | (converged & ~last), k + 1, k)
+        x_next = jnp.where(step, x - dx, x)
+        new_small = jnp.max(jnp.abs(dx) / (tol_a + tol_r * jnp.abs(x)), initial=0.0)
+        return (
+            k_next,
+            n_next,
+            x_next,
+            jnp.where(step, it + 1, jnp.where(k_next > k, 0, it)),
+            total + step.astype(int_),
+            step & (new_small <= 1.0),
+            status,
+            J,
+            (f, aux),
+        )
+
+    _, _, x, _, total, _, status, J, (f, aux) = lax.while_loop(cond, body, init)
+    return x, f, aux, J, total, status
+
+
 @eqx.filter_jit
 def _solve_statics(
     linkage: Linkage,
@@ -158,116 +275,116 @@ def _solve_statics(
     u = as_inputs(linkage, u, q0.dtype)
     qi, ui = linkage.prescribed
     free = np.setdiff1d(np.arange(n), qi)
+    nf = len(free)
     n_c = linkage.n_constraints
     closed = n_c > 0
     linear_solver = lx.SVD() if closed else lx.AutoLinearSolver(well_posed=None)
-    default_solver = solver is None
     data = precompute(linkage)
     q_p0 = q0[qi]
     t = jnp.asarray(t, q0.dtype)
 
     def full(x, lam, u_, q_p0_=q_p0):
-        q = jnp.zeros(n, x.dtype).at[free].set(x[: len(free)])
+        q = jnp.zeros(n, x.dtype).at[free].set(x[:nf])
         if len(qi):
             q = q.at[qi].set(q_p0_ + lam * (u_[ui] - q_p0_))
-        return q, x[len(free) :]
+        return q, x[nf:]
 
     # The linkage travels in the solver's args as its arrays only (cable paths and
     # anchors get gradients); functions and structure stay static.
     dyn, static = eqx.partition(linkage, eqx.is_array)
 
-    # Every array fn depends on travels in its args (none is closed over), so that the
-    # load-stepping loop can run on stop-gradient copies and the implicit derivative
-    # sees them all.
-    def fn(x, args):
+    # Every array the residual depends on travels in its args (none is closed over),
+    # so that the solve can run on stop-gradient copies and the implicit derivative
+    # sees them all. aux: the unscaled residual (all rows).
+    def fn_aux(x, args):
         data_, lam, u_, dyn_, q_p0_, t_ = args
         linkage_ = eqx.combine(dyn_, static)
         q, mu = full(x, lam, u_, q_p0_)
         r, e = _residual_and_closure(
             linkage_, data_, q, t_, lam, u_, mu if closed else None
         )
-        return jnp.concatenate([_row_scale(data_.K)[free] * r[free], e])
+        return jnp.concatenate([_row_scale(data_.K)[free] * r[free], e]), r
+
+    def fn(x, args):
+        return fn_aux(x, args)[0]
 
     def with_load(args_, lam):
         """The residual's args from ``(data, u, dyn, q_p0, t)`` and the load factor."""
         data_, u_, dyn_, q_p0_, t_ = args_
         return (data_, lam, u_, dyn_, q_p0_, t_)
 
-    def solve(x_start, lam, args, last):
-        if default_solver:
-            # Intermediate load increments only need a good start for the next one;
-            # traced tolerances keep one Newton trace for all increments.
-            tol_r = jnp.where(last, rtol, 1e-4)
-            tol_a = jnp.where(last, atol, 1e-4)
-            solver_ = optx.Newton(rtol=tol_r, atol=tol_a, linear_solver=linear_solver)
-        else:
-            solver_ = solver
-        return optx.root_find(
-            fn, solver_, x_start, with_load(args, lam), max_steps=max_steps, throw=False
-        )
-
     x0 = jnp.concatenate([q0[free], jnp.zeros(n_c, q0.dtype)])
     args = (data, u, dyn, q_p0, t)
     one = jnp.ones((), q0.dtype)
-    # Number of load increments: given, or from the size of the scaled residual.
-    if load_steps is None:
-        r0 = fn(x0, with_load(args, one))
-        r0 = jax.lax.stop_gradient(jnp.where(jnp.isfinite(r0), r0, 0.0))
+
+    def n_inc_of(f_full_load):
+        """Number of load increments from the scaled residual at full load."""
+        r0 = jnp.where(jnp.isfinite(f_full_load), f_full_load, 0.0)
         size = jnp.max(jnp.abs(r0), initial=0.0) / load_increment
         if len(qi):  # prescribed jumps move whole mechanisms: a quarter increment
-            jump = jax.lax.stop_gradient(jnp.abs(u[ui] - q_p0))
+            jump = jnp.abs(u[ui] - q_p0)
             size = jnp.maximum(size, 4.0 * jnp.max(jump) / load_increment)
-        n_inc = jnp.clip(jnp.ceil(size), 1, max_load_steps)
-    else:
-        n_inc = jnp.asarray(load_steps, dtype=q0.dtype)
+        return jax.lax.stop_gradient(jnp.clip(jnp.ceil(size), 1, max_load_steps))
 
-    # Load increments lambda = k / n, k = 1 .. n, in one while loop: it runs only the
-    # increments needed (under vmap, those of the hardest case), and its single Newton
-    # trace keeps the compiled program small. The loop sees no gradients: they come
-    # from the implicit function theorem at the converged solution (below).
+    # The solve sees no gradients: they come from the implicit function theorem at
+    # the converged solution (below).
     args_ng = jax.lax.stop_gradient(args)
-
-    def cond(carry):
-        k, _, _, _ = carry
-        return k <= n_inc
-
-    def body(carry):
-        k, x, n_it, _ = carry
-        sol = solve(x, k / n_inc, args_ng, k >= n_inc)
-        return k + 1, sol.value, n_it + sol.stats["num_steps"], sol.result
-
-    zero_it = jnp.zeros((), dtype=jnp.asarray(0).dtype)
-    init = (
-        one,
-        jax.lax.stop_gradient(x0),
-        zero_it,
-        optx.RESULTS.successful,
-    )
-    _, x_star, steps, final_result = lax.while_loop(cond, body, init)
+    if solver is None:
+        # Load increments and Newton iterations in one loop with one trace of the
+        # residual and its Jacobian (the compile time is about that trace).
+        x_star, f_star, r_star, J, steps, status = _newton(
+            lambda x, lam: fn_aux(x, with_load(args_ng, lam)),
+            jax.lax.stop_gradient(x0),
+            args_ng,
+            n_inc=(load_steps, n_inc_of),
+            linear_solver=linear_solver,
+            max_steps=max_steps,
+            rtol=rtol,
+            atol=atol,
+        )
+        result = RESULTS.where(
+            status == 0,
+            RESULTS.successful,
+            RESULTS.where(
+                status == 1,
+                RESULTS.max_steps_reached,
+                RESULTS.where(
+                    status == 3, RESULTS.singular, RESULTS.nonlinear_divergence
+                ),
+            ),
+        )
+    else:
+        x_star, steps, result = _optx_load_steps(
+            fn,
+            solver,
+            x0,
+            args_ng,
+            with_load,
+            n_inc=(
+                n_inc_of(fn(x0, with_load(args_ng, one)))
+                if load_steps is None
+                else jnp.asarray(load_steps, q0.dtype)
+            ),
+            max_steps=max_steps,
+        )
+        J, (f_star, r_star) = _jacobian_and_values(
+            lambda x_: fn_aux(x_, with_load(args_ng, one)), x_star
+        )
+        finite = jnp.all(jnp.isfinite(x_star)) & jnp.all(jnp.isfinite(r_star))
+        result = RESULTS.where(
+            ~finite & (result == RESULTS.successful),
+            RESULTS.nonlinear_divergence,
+            result,
+        )
     x_sol = _implicit_solution(fn, x_star, with_load(args, one), linear_solver)
     q, mu = full(x_sol, 1.0, u)
-    ok = final_result == optx.RESULTS.successful
-    out_of_steps = final_result == optx.RESULTS.max_steps_reached
-    r, e = _residual_and_closure(linkage, data, q, t, 1.0, u, mu if closed else None)
-    finite = jnp.all(jnp.isfinite(q)) & jnp.all(jnp.isfinite(r))
-    # Only the final step decides: from whatever start, a converged final solve is a
-    # true equilibrium of the full load.
-    result = RESULTS.where(
-        ok & finite,
-        RESULTS.successful,
-        RESULTS.where(
-            out_of_steps, RESULTS.max_steps_reached, RESULTS.nonlinear_divergence
-        ),
-    )
-    res_norm = jnp.max(jnp.abs(r[free]), initial=0.0)
-    rank = (
-        numerical_rank(constraint_jacobian_from_data(linkage, data, q))
-        if closed
-        else jnp.zeros((), dtype=int)
-    )
+    full_args = with_load(args, one)
+    r = _with_derivative(lambda x_, a_: fn_aux(x_, a_)[1], r_star, (x_sol, full_args))
+    e = f_star[nf:]
+    rank = numerical_rank(J[nf:, :nf]) if closed else jnp.zeros((), dtype=int)
     return StaticsSolution(
         q=q,
-        residual_norm=res_norm,
+        residual_norm=jnp.max(jnp.abs(r[free]), initial=0.0),
         num_steps=steps,
         result=result,
         efforts=r[qi],
@@ -275,6 +392,38 @@ def _solve_statics(
         constraint_error=jnp.max(jnp.abs(e), initial=0.0),
         constraint_rank=rank,
     )
+
+
+def _optx_load_steps(fn, solver, x0, args, with_load, *, n_inc, max_steps):
+    """A user's optimistix solver over the load increments k / n (one while loop)."""
+
+    def cond(carry):
+        return carry[0] <= n_inc
+
+    def body(carry):
+        k, x, n_it, _ = carry
+        sol = optx.root_find(
+            fn, solver, x, with_load(args, k / n_inc), max_steps=max_steps, throw=False
+        )
+        return k + 1, sol.value, n_it + sol.stats["num_steps"], sol.result
+
+    init = (
+        jnp.ones((), x0.dtype),
+        jax.lax.stop_gradient(x0),
+        jnp.zeros((), dtype=jnp.asarray(0).dtype),
+        optx.RESULTS.successful,
+    )
+    _, x, steps, res = lax.while_loop(cond, body, init)
+    result = RESULTS.where(
+        res == optx.RESULTS.successful,
+        RESULTS.successful,
+        RESULTS.where(
+            res == optx.RESULTS.max_steps_reached,
+            RESULTS.max_steps_reached,
+            RESULTS.nonlinear_divergence,
+        ),
+    )
+    return x, steps, result
 
 
 def solve_statics(
