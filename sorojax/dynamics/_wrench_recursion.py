@@ -16,55 +16,46 @@ transported by Ad(placement)^-T, to their parent's tip.
 
 import math
 
+import jax
 import jax.numpy as jnp
 from jax import lax
 from jaxtyping import Array, Float
 
-from ..kinematics._recursion import magnus_omega
-from ..kinematics._step import Ad_inv_Rp, exp_and_tangent, pose
+from ..kinematics._recursion import _prefix_poses, step_kernels
+from ..kinematics._step import Ad_inv_Rp, pose
 from ..lie import ad
 from ..model._precompute import LinkageData
 
 _C = math.sqrt(3.0) / 12.0
 
 
-def _division_forward(g0, dd, q):
-    o, n = dd.offset, dd.n_dof
-    q_d = q[o : o + n]
-
-    def step(g, x):
-        h, P, r = x
-        Omega, xi1, xi2 = magnus_omega(h, P, r, q_d)
-        R, p, T = exp_and_tangent(Omega)
-        g = g @ pose(R, p)
-        return g, (g, (R, p, T, xi1, xi2))
-
-    _, (gs, rec) = lax.scan(step, g0, (dd.h, dd.Phi_z, dd.xi_ref_z))
-    return jnp.concatenate([g0[None], gs]), rec
-
-
 def poses_with_records(data: LinkageData, q):
-    """Poses at all significant points plus per-step records for the backward pass."""
+    """Poses at all significant points plus per-step records for the backward pass.
+
+    All step kernels of the linkage in one vectorised call, then per division the
+    prefix product of its step poses (:mod:`sorojax.kinematics._recursion`).
+    """
     dtype = q.dtype
+    kernels, twists = step_kernels(data, q)
+    kernels, twists_it = iter(kernels), iter(twists)
     tips, gs, records = [], [], []
     for ld in data.links:
         g = jnp.eye(4, dtype=dtype) if ld.parent == 0 else tips[ld.parent - 1]
         g = g @ ld.placement
-        nj = ld.joint_Phi.shape[1]
         jrec = None
-        if nj:
-            q_j = q[ld.joint_offset : ld.joint_offset + nj]
-            R, p, T = exp_and_tangent(ld.joint_Phi @ q_j)
+        if ld.joint_Phi.shape[1]:
+            R, p, T = (x[0] for x in next(kernels))
             g = g @ pose(R, p)
             jrec = (R, p, T)
         gs.append(g[None])
         g = g @ ld.g_i
         drecs = []
         if ld.soft:
-            for dd in ld.divisions:
-                gd, rec = _division_forward(g, dd, q)
+            for _ in ld.divisions:
+                R, p, T = next(kernels)
+                gd = jnp.einsum("ab,pbc->pac", g, _prefix_poses(jax.vmap(pose)(R, p)))
                 gs.append(gd)
-                drecs.append(rec)
+                drecs.append((R, p, T, *next(twists_it)[2][:2]))
                 g = gd[-1]
         else:
             gs.append(g[None])

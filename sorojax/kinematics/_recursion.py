@@ -18,6 +18,7 @@ import math
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax import lax
 from jaxtyping import Array, Float
 
@@ -28,44 +29,23 @@ from ._step import Ad_inv_Rp, exp_and_tangent, pose
 _C = math.sqrt(3.0) / 12.0
 
 
-def _joint_step(g, J, Phi, q_j, V_j, rates=None):
-    """One lumped-joint step (pose and Jacobian).
+def _joint_step(g, J, Phi, kernel, V_j, rates=None):
+    """One lumped-joint step (pose and Jacobian), ``kernel`` its ``(R, p, T[, Td])``.
 
     ``rates = (eta, etadot_v, qd_j)`` also carries the twist and its velocity-product
     rate through the step (see :func:`_division_scan`).
     """
-    Omega = Phi @ q_j
-    if rates is None:
-        R, p, T = exp_and_tangent(Omega)
-        J = J + T @ (Phi @ V_j)
-        return g @ pose(R, p), Ad_inv_Rp(R, p) @ J, None
-    eta, etadot, qd_j = rates
-    Od = Phi @ qd_j
-    (R, p, T), (_, _, Td) = jax.jvp(exp_and_tangent, (Omega,), (Od,))
+    R, p, T = (k[0] for k in kernel[:3])
     J = J + T @ (Phi @ V_j)
     Ai = Ad_inv_Rp(R, p)
+    if rates is None:
+        return g @ pose(R, p), Ai @ J, None
+    eta, etadot, qd_j = rates
+    Od = Phi @ qd_j
     y = Ai @ (T @ Od)
     eta1 = Ai @ eta + y
-    etadot1 = Ai @ (etadot + Td @ Od) + ad(eta1) @ y
+    etadot1 = Ai @ (etadot + kernel[3][0] @ Od) + ad(eta1) @ y
     return g @ pose(R, p), Ai @ J, (eta1, etadot1)
-
-
-def magnus_omega(h, P, r, q_d):
-    """4th-order Magnus twist of one step, with the strains at its two Zanna points.
-
-    Args:
-        h: step length [m].
-        P: (2, 6, n) basis at the Zanna points.
-        r: (2, 6) reference strain at the Zanna points.
-        q_d: (n,) the division's coordinates.
-
-    Returns:
-        ``(Omega, xi1, xi2)``.
-    """
-    xi1 = P[0] @ q_d + r[0]
-    xi2 = P[1] @ q_d + r[1]
-    Omega = 0.5 * h * (xi1 + xi2) + _C * h * h * (ad(xi1) @ xi2)
-    return Omega, xi1, xi2
 
 
 def _Ad(g):
@@ -82,7 +62,83 @@ def _prefix_poses(E):
     return jnp.concatenate([eye, G])
 
 
-def _division_scan(g0, J0, dd: DivisionData, q, V, rates=None):
+def division_twists(dd: DivisionData, q, qd=None):
+    """Magnus twists of every step of a division, with what their Jacobians need.
+
+    Returns ``(Omega, Od, aux)``: ``Omega`` ``(m, 6)``; with ``qd``, ``Od = dOmega qd``
+    ``(m, 6)`` (else None); ``aux = (xi1, xi2, ad1, ad2, Odd)`` (``Odd`` None without
+    ``qd``), see :func:`_division_scan`.
+    """
+    o, n = dd.offset, dd.n_dof
+    q_d = q[o : o + n]
+    xi = jnp.einsum("szan,n->sza", dd.Phi_z, q_d) + dd.xi_ref_z
+    xi1, xi2 = xi[:, 0], xi[:, 1]
+    c = _C * dd.h * dd.h
+    ad1, ad2 = jax.vmap(ad)(xi1), jax.vmap(ad)(xi2)
+    Omega = 0.5 * dd.h[:, None] * (xi1 + xi2) + c[:, None] * jnp.einsum(
+        "sab,sb->sa", ad1, xi2
+    )
+    Od = Odd = None
+    if qd is not None:
+        xid = jnp.einsum("szan,n->sza", dd.Phi_z, qd[o : o + n])
+        xid1, xid2 = xid[:, 0], xid[:, 1]
+        Od = 0.5 * dd.h[:, None] * (xid1 + xid2) + c[:, None] * (
+            jnp.einsum("sab,sb->sa", ad1, xid2) - jnp.einsum("sab,sb->sa", ad2, xid1)
+        )
+        Odd = 2.0 * c[:, None] * jnp.einsum("sab,sb->sa", jax.vmap(ad)(xid1), xid2)
+    return Omega, Od, (xi1, xi2, ad1, ad2, Odd)
+
+
+def batched_kernels(Omegas: list, Ods: list | None = None) -> list:
+    """``exp_and_tangent`` (and, with ``Ods``, its rate) of every step in one call.
+
+    ``Omegas``: a list of ``(m_i, 6)`` twists (divisions, joints); returns a list of
+    ``(R, p, T)`` or ``(R, p, T, Tdot)`` per entry. One vectorised kernel for the
+    whole linkage keeps the compiled program small: its size (and compile time)
+    no longer grows with the number of divisions and joints.
+    """
+    if not Omegas:
+        return []
+    sizes = np.cumsum([O.shape[0] for O in Omegas])[:-1]
+    Om = jnp.concatenate(Omegas)
+    if Ods is None:
+        out = jax.vmap(exp_and_tangent)(Om)
+    else:
+        (R, p, T), (_, _, Td) = jax.vmap(
+            lambda O, dO: jax.jvp(exp_and_tangent, (O,), (dO,))
+        )(Om, jnp.concatenate(Ods))
+        out = (R, p, T, Td)
+    parts = [jnp.split(x, sizes) for x in out]
+    return list(zip(*parts, strict=True))
+
+
+def step_kernels(data: LinkageData, q, qd=None) -> tuple[list, list]:
+    """Kernels of every joint and division step of the linkage, in one call.
+
+    Every step's twist depends on q alone, so all of them are formed first
+    (:func:`division_twists`, joint twists ``Phi_j q_j``) and go through one
+    :func:`batched_kernels` call. Returns ``(kernels, twists)``: the kernels in link
+    order (a link's joint, if it has coordinates, then its divisions) and the
+    divisions' :func:`division_twists`.
+    """
+    Omegas, Ods, twists = [], [], []
+    for ld in data.links:
+        nj = ld.joint_Phi.shape[1]
+        if nj:
+            sl = slice(ld.joint_offset, ld.joint_offset + nj)
+            Omegas.append((ld.joint_Phi @ q[sl])[None])
+            if qd is not None:
+                Ods.append((ld.joint_Phi @ qd[sl])[None])
+        for dd in ld.divisions if ld.soft else ():
+            tw = division_twists(dd, q, qd)
+            twists.append(tw)
+            Omegas.append(tw[0])
+            if qd is not None:
+                Ods.append(tw[1])
+    return batched_kernels(Omegas, None if qd is None else Ods), twists
+
+
+def _division_scan(g0, J0, dd: DivisionData, q, V, kernel, twists, rates=None):
     """Poses and Jacobians at every point of one division (first point included).
 
     Vectorised over the division's steps: every Magnus twist depends on q alone, so
@@ -108,29 +164,18 @@ def _division_scan(g0, J0, dd: DivisionData, q, V, rates=None):
     ``Omegaddot = 2 sqrt(3) h^2/12 ad(Phi_1 qd) (Phi_2 qd)`` (qdd = 0) and ``Tdot`` a
     forward-mode derivative of the elementwise kernel only: no derivative of the
     prefix product is taken.
+
+    ``kernel``: the steps' ``(R, p, T[, Tdot])`` and ``twists`` their
+    :func:`division_twists` (both from the batched pass of :func:`_tree_pass`).
     """
     o, n = dd.offset, dd.n_dof
-    q_d = q[o : o + n]
-    xi = jnp.einsum("szan,n->sza", dd.Phi_z, q_d) + dd.xi_ref_z
-    xi1, xi2 = xi[:, 0], xi[:, 1]
     c = _C * dd.h * dd.h
-    ad1, ad2 = jax.vmap(ad)(xi1), jax.vmap(ad)(xi2)
-    Omega = 0.5 * dd.h[:, None] * (xi1 + xi2) + c[:, None] * jnp.einsum(
-        "sab,sb->sa", ad1, xi2
-    )
+    _, Od, (_, _, ad1, ad2, Odd) = twists
     if rates is None:
-        R, p, T = jax.vmap(exp_and_tangent)(Omega)
+        R, p, T = kernel[:3]
     else:
         eta0, etadot0, qd = rates
-        xid = jnp.einsum("szan,n->sza", dd.Phi_z, qd[o : o + n])
-        xid1, xid2 = xid[:, 0], xid[:, 1]
-        Od = 0.5 * dd.h[:, None] * (xid1 + xid2) + c[:, None] * (
-            jnp.einsum("sab,sb->sa", ad1, xid2) - jnp.einsum("sab,sb->sa", ad2, xid1)
-        )
-        Odd = 2.0 * c[:, None] * jnp.einsum("sab,sb->sa", jax.vmap(ad)(xid1), xid2)
-        (R, p, T), (_, _, Td) = jax.vmap(
-            lambda O, dO: jax.jvp(exp_and_tangent, (O,), (dO,))
-        )(Omega, Od)
+        R, p, T, Td = kernel
     E = jax.vmap(pose)(R, p)
     G = _prefix_poses(E)  # (m + 1, 4, 4)
     gs = jnp.einsum("ab,pbc->pac", g0, G)
@@ -225,6 +270,9 @@ def _tree_pass(data: LinkageData, q, V, qd):
         A = Ad_inv(h)
         return g @ h, A @ J, None if r is None else (A @ r[0], A @ r[1])
 
+    kernels, twists = step_kernels(data, q, qd)
+    kernels, twists_it = iter(kernels), iter(twists)
+
     for ld in data.links:
         if ld.parent == 0:
             g, J = jnp.eye(4, dtype=dtype), jnp.zeros((6, k), dtype=dtype)
@@ -236,13 +284,15 @@ def _tree_pass(data: LinkageData, q, V, qd):
         if nj:
             sl = slice(ld.joint_offset, ld.joint_offset + nj)
             rj = None if qd is None else (r[0], r[1], qd[sl])
-            g, J, r = _joint_step(g, J, ld.joint_Phi, q[sl], V[sl], rj)
+            g, J, r = _joint_step(g, J, ld.joint_Phi, next(kernels), V[sl], rj)
         append(g, J, r)
         g, J, r = transport(g, J, r, ld.g_i)
         if ld.soft:
             for dd in ld.divisions:
                 rd = None if qd is None else (r[0], r[1], qd)
-                gd, Jd, r_all = _division_scan(g, J, dd, q, V, rd)
+                gd, Jd, r_all = _division_scan(
+                    g, J, dd, q, V, next(kernels), next(twists_it), rd
+                )
                 append(gd, Jd, r_all, batched=True)
                 g, J = gd[-1], Jd[-1]
                 r = None if r_all is None else (r_all[0][-1], r_all[1][-1])
