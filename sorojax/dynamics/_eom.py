@@ -19,14 +19,12 @@ from ..kinematics._api import Kinematics, _as_q
 from ..kinematics._recursion import (
     jacobians_dot,
     kinematics_and_rates,
-    poses_and_jacobians,
     strains,
 )
 from ..model._linkage import Linkage
 from ..model._precompute import LinkageData, precompute
 from ._actuation import actuation_loads, effective_inputs
 from ._constraints import (
-    constraint_jacobian_from_data,
     constraint_terms_from_kinematics,
 )
 from ._external import custom_wrenches, external_wrenches
@@ -40,6 +38,24 @@ InputFunction = Callable[[Array], Array]
 """``u(t) -> (n_inputs,)`` actuation inputs as a function of time (pure JAX)."""
 
 
+def lazy_kinematics(data: LinkageData, q, qd, rates):
+    """A function returning the :class:`Kinematics` the hooks read, built once.
+
+    Poses, Jacobians and twists come from ``rates`` (:func:`kinematics_and_rates`);
+    the strains and the Jacobians' time derivatives are traced only if a hook asks.
+    """
+    cache: list = []
+
+    def kin_fn():
+        if not cache:
+            g, J, eta, _ = rates
+            Jdot = jacobians_dot(data, q, qd)
+            cache.append(Kinematics(g=g, J=J, xi=strains(data, q), eta=eta, Jdot=Jdot))
+        return cache[0]
+
+    return kin_fn
+
+
 def mass_and_force(
     linkage: Linkage,
     data: LinkageData,
@@ -49,30 +65,20 @@ def mass_and_force(
     generalized_force: GeneralizedForce | None = None,
     u=None,
     rates=None,
+    kin_fn=None,
 ) -> tuple[Array, Array]:
     """``(M, f)`` with ``M qdd = f``: mass matrix and all other generalised forces.
 
     ``u`` are the actuation inputs at ``t`` (None: no actuator forces); prescribed
     joints add nothing here (their efforts are constraint multipliers). ``rates``:
-    ``kinematics_and_rates(data, q, qd)`` if the caller has it already.
+    ``kinematics_and_rates(data, q, qd)`` if the caller has it already, ``kin_fn``
+    its :func:`lazy_kinematics` (what the hooks read).
     """
     if rates is None:
         rates = kinematics_and_rates(data, q, qd)
     g, J, eta, etadot_v = rates
-    cache: list = []
-
-    def kin_fn():
-        if not cache:
-            cache.append(
-                Kinematics(
-                    g=g,
-                    J=J,
-                    xi=strains(data, q),
-                    eta=eta,
-                    Jdot=jacobians_dot(data, q, qd),
-                )
-            )
-        return cache[0]
+    if kin_fn is None:
+        kin_fn = lazy_kinematics(data, q, qd, rates)
 
     W = external_wrenches(linkage, data, t, g) - _gyroscopic(
         _weighted_inertia(data), eta, etadot_v
@@ -210,7 +216,8 @@ def constrained_dynamics(
         Tb = linkage.baumgarte_time
         rows.append(A)
         rhs.append(-bias - (2.0 / Tb) * (A @ qd) - e / Tb**2)
-    M, f = mass_and_force(linkage, data, t, q, qd, generalized_force, u, rates)
+    kin_fn = lazy_kinematics(data, q, qd, rates)
+    M, f = mass_and_force(linkage, data, t, q, qd, generalized_force, u, rates, kin_fn)
     if rows:
         G, b = jnp.concatenate(rows), jnp.concatenate(rhs)
         X = spd_solve(M, jnp.concatenate([f[:, None], G.T], axis=1))
@@ -224,7 +231,7 @@ def constrained_dynamics(
     else:
         mu = jnp.zeros((0,), q.dtype)
         qdd = spd_solve(M, f)
-    u_eff = effective_inputs(linkage, t, q, qd, lambda: _kin(data, q, qd), u)
+    u_eff = effective_inputs(linkage, t, q, qd, kin_fn, u)
     return ConstrainedState(
         qd=qd, qdd=qdd, u=u_eff, efforts=mu[: len(qi)], lam=mu[len(qi) :], M=M
     )
@@ -239,30 +246,25 @@ def consistent_velocities(
     kinetic energy so that ``A qd = 0`` (closed loops): ``qd + M^-1 G^T mu``.
     """
     qi, _ = linkage.prescribed
+    if not is_constrained(linkage):
+        return qd
     rows, rhs = [], []
     if len(qi):
         _, qdp, _ = prescribed_motion(linkage, u_fn, t)
         rows.append(jnp.eye(q.shape[0], dtype=q.dtype)[qi])
         rhs.append(qdp)
-    if linkage.closed_loops:
-        rows.append(constraint_jacobian_from_data(linkage, data, q))
+    qd0 = jnp.zeros_like(qd)
+    rates = kinematics_and_rates(data, q, qd0)
+    if linkage.closed_loops:  # A from the body Jacobians M needs anyway
+        rows.append(constraint_terms_from_kinematics(linkage, *rates)[1])
         rhs.append(jnp.zeros(linkage.n_constraints, q.dtype))
-    if not rows:
-        return qd
     G, b = jnp.concatenate(rows), jnp.concatenate(rhs)
-    M = mass_and_force(linkage, data, t, q, jnp.zeros_like(qd))[0]
+    M = mass_and_force(linkage, data, t, q, qd0, rates=rates)[0]
     Minv_Gt = spd_solve(M, G.T)
     S = G @ Minv_Gt
     eps = 1e-12 * jnp.maximum(jnp.trace(S) / S.shape[0], 1e-300)
     mu = jnp.linalg.solve(S + eps * jnp.eye(S.shape[0], dtype=S.dtype), b - G @ qd)
     return qd + Minv_Gt @ mu
-
-
-def _kin(data, q, qd) -> Kinematics:
-    g, J = poses_and_jacobians(data, q)
-    return Kinematics(
-        g=g, J=J, xi=strains(data, q), eta=J @ qd, Jdot=jacobians_dot(data, q, qd)
-    )
 
 
 @eqx.filter_jit
