@@ -22,8 +22,8 @@ warm time; warm figures are medians of repeated calls after a warm-up, each ende
    cable): statics at angle -pi/4 and 50 N from the straight configuration, then
    5 s of dynamics from the rest equilibrium with the revolute at pi t / 2 and the
    tension ramped to 50 N over the first second (the inputs of
-   examples/manual_hybrid.py), with ``simulate``'s defaults (solver ``"auto"``, rtol
-   1e-6, atol 1e-8). The scene is imported when this part runs (it runs last).
+   examples/manual_hybrid.py), with ``simulate``'s ``"auto"`` solver at the example's
+   rtol 1e-6, atol 1e-8. The scene is imported when this part runs (it runs last).
 
 Prints tables and writes ``benchmarks/results/actuation.json`` and
 ``benchmarks/results/actuation.csv``.
@@ -213,7 +213,15 @@ def bench_hybrid(repeats, dyn_repeats):
     # q0 is closed over (concrete), so simulate's "auto" analyses the model as in an
     # ordinary call.
     def dynamics():
-        tr = sj.simulate(linkage, HYBRID_T1, rest, u=hybrid_inputs, throw=False)
+        tr = sj.simulate(
+            linkage,
+            HYBRID_T1,
+            rest,
+            u=hybrid_inputs,
+            rtol=1e-6,
+            atol=1e-8,
+            throw=False,
+        )
         e = jax.vmap(lambda q_: sj.closure_errors(linkage, q_))(tr.q)
         return tr, jnp.max(jnp.abs(e))
 
