@@ -17,7 +17,7 @@ along the motion and the torque. Writes a PNG (equilibrium, snapshots, torque);
 ``--video`` also writes an animation (mp4, or GIF without ffmpeg).
 
 The first run compiles the statics and the dynamics of this closed-loop model
-(about a minute on a 2-core CPU, most of it the dynamics); set
+(about 1.5 min on a slow 2-core CPU, half of it the dynamics); set
 ``JAX_COMPILATION_CACHE_DIR`` to keep the compiled programs between runs.
 
 Run::
