@@ -204,6 +204,19 @@ def test_prescribed_revolute_statics_returns_gravity_torque(prescribed_arm, thet
     assert abs(float(sol.efforts[0]) - tau) < 1e-12
 
 
+def test_returned_effort_is_differentiable(prescribed_arm):
+    """The efforts carry the solve's derivatives (forward and reverse):
+    d/dtheta of m g (L/2) cos(theta) is -m g (L/2) sin(theta), exact (roundoff)."""
+
+    def torque(th):
+        return sj.solve_statics(prescribed_arm, u=jnp.stack([th])).efforts[0]
+
+    th = 0.4
+    exact = -M_BAR * G * L_BAR / 2 * math.sin(th)
+    assert abs(float(jax.grad(torque)(th)) - exact) < 1e-12
+    assert abs(float(jax.jacfwd(torque)(th)) - exact) < 1e-12
+
+
 def test_prescribed_revolute_dynamics_follows_motion_and_returns_inverse_dynamics(
     prescribed_arm,
 ):

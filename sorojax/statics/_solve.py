@@ -105,42 +105,15 @@ def _residual_and_closure(linkage: Linkage, data: LinkageData, q, t, lam, u, mu)
     return data.K @ q - F - Q, e
 
 
-def _implicit_solution(fn, x_star, args, linear_solver):
-    """``x_star`` (a root of ``fn(x, args)``) with implicit-function derivatives.
+def _value_with_jvp(value, fn, inputs, rule):
+    """``value`` (computed elsewhere, e.g. inside a solver loop) with a custom JVP.
 
-    The value is ``x_star`` itself; its derivative with respect to ``args`` (and to
-    any array ``fn`` closes over, lifted by ``jax.closure_convert``) is
-    ``dx = -J^-1 (df/dargs dargs)`` with ``J = df/dx`` at ``x_star`` (a custom JVP;
-    reverse mode follows by transposition, with lineax's transposable linear solve).
-    Nothing of it enters the primal program: only a differentiated solve traces the
-    Jacobian.
+    ``fn(*inputs)`` is closure-converted (arrays it closes over become inputs too) and
+    the tangent of ``value`` is ``rule(g, ins, t_ins, c, t_c)`` with ``g(ins, c)`` the
+    converted ``fn``, ``c`` the lifted constants and ``t_*`` the tangents. Nothing of
+    the rule enters the primal program; reverse mode follows by transposition.
     """
-    conv, consts = jax.closure_convert(fn, x_star, args)
-
-    @jax.custom_jvp
-    def ident(x, a, c):
-        return x
-
-    @ident.defjvp
-    def _ident_jvp(primals, tangents):
-        x, a, c = primals
-        _, ta, tc = tangents
-        _, rhs = jax.jvp(lambda a_, c_: conv(x, a_, *c_), (a, c), (ta, tc))
-        op = lx.JacobianLinearOperator(lambda x_, _: conv(x_, a, *c), x)
-        dx = lx.linear_solve(op, rhs, linear_solver).value
-        return x, -dx
-
-    return ident(jax.lax.stop_gradient(x_star), args, list(consts))
-
-
-def _with_derivative(g, value, inputs):
-    """``value`` (``g(*inputs)`` computed elsewhere) carrying the derivative of ``g``.
-
-    The primal program keeps ``value`` as it is (no second evaluation of ``g``);
-    a differentiated program gets ``dg = jvp(g)(inputs; dinputs)`` (linear, so
-    reverse mode follows by transposition).
-    """
-    conv, consts = jax.closure_convert(g, *inputs)
+    conv, consts = jax.closure_convert(fn, *inputs)
 
     @jax.custom_jvp
     def ident(v, ins, c):
@@ -150,10 +123,40 @@ def _with_derivative(g, value, inputs):
     def _ident_jvp(primals, tangents):
         v, ins, c = primals
         _, t_ins, t_c = tangents
-        _, dv = jax.jvp(lambda i, c_: conv(*i, *c_), (ins, c), (t_ins, t_c))
-        return v, dv
+        return v, rule(lambda i, c_: conv(*i, *c_), ins, t_ins, c, t_c)
 
     return ident(jax.lax.stop_gradient(value), tuple(inputs), list(consts))
+
+
+def _implicit_solution(fn, x_star, args, linear_solver):
+    """``x_star`` (a root of ``fn(x, args)``) with implicit-function derivatives.
+
+    Its derivative with respect to ``args`` (and to any array ``fn`` closes over) is
+    ``dx = -J^-1 (df/dargs dargs)`` with ``J = df/dx`` at ``x_star`` (lineax's
+    transposable linear solve, so reverse mode works). Only a differentiated solve
+    traces the Jacobian.
+    """
+
+    def rule(g, ins, t_ins, c, t_c):
+        x, a = ins
+        _, rhs = jax.jvp(lambda a_, c_: g((x, a_), c_), (a, c), (t_ins[1], t_c))
+        op = lx.JacobianLinearOperator(lambda x_, _: g((x_, a), c), x)
+        return -lx.linear_solve(op, rhs, linear_solver).value
+
+    x_star = jax.lax.stop_gradient(x_star)
+    return _value_with_jvp(x_star, fn, (x_star, args), rule)
+
+
+def _with_derivative(g, value, inputs):
+    """``value`` (``g(*inputs)`` computed elsewhere) carrying the derivative of ``g``.
+
+    The primal program keeps ``value`` as it is (no second evaluation of ``g``).
+    """
+
+    def rule(g_, ins, t_ins, c, t_c):
+        return jax.jvp(g_, (ins, c), (t_ins, t_c))[1]
+
+    return _value_with_jvp(value, g, inputs, rule)
 
 
 def _jacobian_and_values(f_aux, x):
