@@ -138,7 +138,7 @@ def step_kernels(data: LinkageData, q, qd=None) -> tuple[list, list]:
     return batched_kernels(Omegas, None if qd is None else Ods), twists
 
 
-def _division_scan(g0, J0, dd: DivisionData, q, V, kernel, twists, rates=None):
+def _division_scan(g0, J0, dd: DivisionData, V, kernel, twists, rates=None):
     """Poses and Jacobians at every point of one division (first point included).
 
     Vectorised over the division's steps: every Magnus twist depends on q alone, so
@@ -291,7 +291,7 @@ def _tree_pass(data: LinkageData, q, V, qd):
             for dd in ld.divisions:
                 rd = None if qd is None else (r[0], r[1], qd)
                 gd, Jd, r_all = _division_scan(
-                    g, J, dd, q, V, next(kernels), next(twists_it), rd
+                    g, J, dd, V, next(kernels), next(twists_it), rd
                 )
                 append(gd, Jd, r_all, batched=True)
                 g, J = gd[-1], Jd[-1]
