@@ -38,6 +38,7 @@ def main(argv=None):
     ap.add_argument("--video", action="store_true", help="also write an animation")
     ap.add_argument("--overwrite", action="store_true", help="replace old outputs")
     args = ap.parse_args(argv)
+    sj.enable_compilation_cache()  # later runs load the compiled programs
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     path = out / "free_fall_dynamics.png"

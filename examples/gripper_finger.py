@@ -42,6 +42,7 @@ def main(argv=None):
     ap.add_argument("--out", default=".", help="folder for the PNG")
     ap.add_argument("--overwrite", action="store_true", help="replace an old PNG")
     args = ap.parse_args(argv)
+    sj.enable_compilation_cache()  # later runs load the compiled programs
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     path = out / "gripper_finger.png"

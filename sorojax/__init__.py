@@ -4,6 +4,7 @@ Conventions: SI units; 6-vectors angular first ``(wx, wy, wz, vx, vy, vz)``; wre
 ``(moment, force)``; rod axis local x; links numbered from 1 (0 = ground).
 """
 
+from ._cache import enable_compilation_cache as enable_compilation_cache
 from ._results import RESULTS as RESULTS
 from ._results import StaticsSolution as StaticsSolution
 from .dynamics import actuation_matrix as actuation_matrix

@@ -139,3 +139,25 @@ def test_constant_step_implicit_solvers_converge_at_their_order(rod):
     assert abs(e2 / e1 / 2.0 - 1.0) < 0.1, f"implicit Euler error ratio {e2 / e1:.3f}"
     e_kv3 = err("kvaerno3", 5e-4)
     assert e_kv3 < 1e-2 * e1, f"Kvaerno3 {e_kv3:.2e} vs implicit Euler {e1:.2e}"
+
+
+def test_compiled_simulate_has_no_host_callback(rod):
+    """The compiled program holds no host callback, so the persistent cache keeps it.
+
+    JAX refuses to write programs with host callbacks to its persistent compilation
+    cache; diffrax's own save-time checks are one (``equinox.error_if``), which
+    sorojax replaces by host-side checks. Saved times outside [t0, t1] under an outer
+    jit (no host check possible) give non-finite states and a failure code.
+    """
+    q0 = sj.strain_coordinates(rod, [0.0, 1.0, 0.0, 0.0, 0.0, 0.0])
+
+    def run(ts):
+        return sj.simulate(rod, 0.1, q0, ts=ts, solver="tsit5", throw=False)
+
+    jaxpr = str(jax.make_jaxpr(lambda ts: run(ts).q)(jnp.array([0.0, 0.05, 0.1])))
+    assert "callback" not in jaxpr
+    bad = jax.jit(run)(jnp.array([0.0, 0.05, 0.2]))
+    assert bad.result != sj.RESULTS.successful
+    good = jax.jit(run)(jnp.array([0.0, 0.05, 0.1]))
+    assert good.result == sj.RESULTS.successful
+    assert np.isfinite(np.asarray(good.q)).all()

@@ -5,10 +5,17 @@ Cholesky factorisation per evaluation (:mod:`sorojax.dynamics._eom`). The linkag
 constant arrays (K, D, bases, section matrices) are precomputed once per call, outside
 the integrator's loop. Implicit solvers take the Jacobian of the vector field by
 forward-mode autodiff. The compiled core never raises (no host callback unless a
-progress bar is asked for), so it is cached like any jitted function; failures come
-back as a result code and are raised by the Python wrapper when ``throw=True``.
+progress bar is asked for), so JAX's persistent compilation cache can keep it
+between runs; failures come back as a result code and are raised by the Python
+wrapper when ``throw=True``. diffrax checks the save times inside the program
+(``equinox.error_if``, a host callback that keeps the program out of the persistent
+cache); sorojax checks them on the host instead (when they are concrete) and traces
+``diffeqsolve`` with equinox's runtime errors turned into NaNs
+(:func:`_errors_as_nans`), so bad save times under an outer jit give NaNs and a
+failed result code rather than an error naming them.
 """
 
+import contextlib
 from collections.abc import Callable
 
 import diffrax
@@ -233,6 +240,27 @@ def _result_code(sol: diffrax.Solution) -> RESULTS:
     return RESULTS.where(ok & ~finite, RESULTS.nonlinear_divergence, code)
 
 
+@contextlib.contextmanager
+def _errors_as_nans():
+    """Trace with equinox's runtime errors as NaNs: no host callback in the program.
+
+    ``equinox.error_if`` reads ``EQX_ON_ERROR`` (an environment variable, read once at
+    import) from its module at trace time; the setting is changed for the duration
+    of the trace only. Without that module attribute (another equinox) nothing changes.
+    """
+    from equinox import _errors
+
+    old = getattr(_errors, "EQX_ON_ERROR", None)
+    if old is None:
+        yield
+        return
+    _errors.EQX_ON_ERROR = "nan"
+    try:
+        yield
+    finally:
+        _errors.EQX_ON_ERROR = old
+
+
 @eqx.filter_jit
 def _simulate(
     linkage: Linkage,
@@ -415,22 +443,23 @@ def simulate(
     dt0_ = None if dt0 is None else jnp.asarray(dt0, dtype=dtype)
     meter = diffrax.TqdmProgressMeter() if progress else diffrax.NoProgressMeter()
     adjoint = diffrax.RecursiveCheckpointAdjoint() if adjoint is None else adjoint
-    traj = _simulate(
-        linkage,
-        y0,
-        t0_,
-        t1_,
-        ts_,
-        solver_,
-        controller,
-        dt0_,
-        max_steps,
-        generalized_force,
-        meter,
-        adjoint,
-        u_fn,
-        u_const,
-    )
+    with _errors_as_nans():
+        traj = _simulate(
+            linkage,
+            y0,
+            t0_,
+            t1_,
+            ts_,
+            solver_,
+            controller,
+            dt0_,
+            max_steps,
+            generalized_force,
+            meter,
+            adjoint,
+            u_fn,
+            u_const,
+        )
     if not throw:
         return traj
     failed = traj.result != RESULTS.successful
