@@ -16,13 +16,12 @@ transported by Ad(placement)^-T, to their parent's tip.
 
 import math
 
-import jax
 import jax.numpy as jnp
 from jax import lax
 from jaxtyping import Array, Float
 
-from ..kinematics._recursion import _prefix_poses, step_kernels
-from ..kinematics._step import Ad_inv_Rp, pose
+from ..kinematics._recursion import chain_layout, chain_poses, chain_terms, steps
+from ..kinematics._step import Ad_inv_Rp
 from ..lie import ad
 from ..model._precompute import LinkageData
 
@@ -32,30 +31,35 @@ _C = math.sqrt(3.0) / 12.0
 def poses_with_records(data: LinkageData, q):
     """Poses at all significant points plus per-step records for the backward pass.
 
-    All step kernels of the linkage in one vectorised call, then per division the
-    prefix product of its step poses (:mod:`sorojax.kinematics._recursion`).
+    All steps of the linkage in one vectorised call and the prefix products of all
+    chains in one batch (:mod:`sorojax.kinematics._recursion`); the loop over the
+    tree only composes each chain with its first point's pose.
     """
     dtype = q.dtype
-    kernels, twists = step_kernels(data, q)
-    kernels, twists_it = iter(kernels), iter(twists)
+    layout = chain_layout(data)
+    k = steps(data, q)
+    ct = chain_terms(data, k, layout)
+    chain_of = {(ch[0], ch[1]): (c, ch[2]) for c, ch in enumerate(layout[0])}
     tips, gs, records = [], [], []
-    for ld in data.links:
+    for i, ld in enumerate(data.links):
         g = jnp.eye(4, dtype=dtype) if ld.parent == 0 else tips[ld.parent - 1]
         g = g @ ld.placement
         jrec = None
         if ld.joint_Phi.shape[1]:
-            R, p, T = (x[0] for x in next(kernels))
-            g = g @ pose(R, p)
-            jrec = (R, p, T)
+            c, s = chain_of[(i, None)]
+            g = chain_poses(ct, c, 1, g)[-1]
+            jrec = (k.R[s], k.p[s], k.T[s])
         gs.append(g[None])
         g = g @ ld.g_i
         drecs = []
         if ld.soft:
-            for _ in ld.divisions:
-                R, p, T = next(kernels)
-                gd = jnp.einsum("ab,pbc->pac", g, _prefix_poses(jax.vmap(pose)(R, p)))
+            for j, dd in enumerate(ld.divisions):
+                c, s = chain_of[(i, j)]
+                m = dd.h.shape[0]
+                gd = chain_poses(ct, c, m, g)
                 gs.append(gd)
-                drecs.append((R, p, T, *next(twists_it)[2][:2]))
+                sl = slice(s, s + m)
+                drecs.append((k.R[sl], k.p[sl], k.T[sl], k.xi1[sl], k.xi2[sl]))
                 g = gd[-1]
         else:
             gs.append(g[None])

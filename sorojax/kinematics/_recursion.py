@@ -15,6 +15,7 @@ Jacobian columns are full width (n_dof) so that trees compose without bookkeepin
 """
 
 import math
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -22,194 +23,238 @@ import numpy as np
 from jax import lax
 from jaxtyping import Array, Float
 
-from ..lie import Ad_inv, ad, hat3
-from ..model._precompute import DivisionData, LinkageData
-from ._step import Ad_inv_Rp, exp_and_tangent, pose
+from ..lie import Ad_inv, ad
+from ..model._precompute import LinkageData
+from ._step import exp_and_tangent
 
 _C = math.sqrt(3.0) / 12.0
 
 
-def _joint_step(g, J, Phi, kernel, V_j, rates=None):
-    """One lumped-joint step (pose and Jacobian), ``kernel`` its ``(R, p, T[, Td])``.
-
-    ``rates = (eta, etadot_v, qd_j)`` also carries the twist and its velocity-product
-    rate through the step (see :func:`_division_scan`).
-    """
-    R, p, T = (k[0] for k in kernel[:3])
-    J = J + T @ (Phi @ V_j)
-    Ai = Ad_inv_Rp(R, p)
-    if rates is None:
-        return g @ pose(R, p), Ai @ J, None
-    eta, etadot, qd_j = rates
-    Od = Phi @ qd_j
-    y = Ai @ (T @ Od)
-    eta1 = Ai @ eta + y
-    etadot1 = Ai @ (etadot + kernel[3][0] @ Od) + ad(eta1) @ y
-    return g @ pose(R, p), Ai @ J, (eta1, etadot1)
-
-
-def _Ad(g):
-    """Ad(g) of a 4x4 pose, angular first: [[R, 0], [hat(p) R, R]]."""
-    R, p = g[:3, :3], g[:3, 3]
-    Z = jnp.zeros((3, 3), dtype=g.dtype)
-    return jnp.block([[R, Z], [hat3(p) @ R, R]])
-
-
-def _prefix_poses(E):
-    """Relative poses ``G_a = E_0 E_1 ... E_{a-1}`` (``G_0 = I``), log-depth scan."""
-    G = lax.associative_scan(jnp.matmul, E)
-    eye = jnp.eye(4, dtype=E.dtype)[None]
-    return jnp.concatenate([eye, G])
-
-
-def division_twists(dd: DivisionData, q, qd=None):
-    """Magnus twists of every step of a division, with what their Jacobians need.
-
-    Returns ``(Omega, Od, aux)``: ``Omega`` ``(m, 6)``; with ``qd``, ``Od = dOmega qd``
-    ``(m, 6)`` (else None); ``aux = (xi1, xi2, ad1, ad2, Odd)`` (``Odd`` None without
-    ``qd``), see :func:`_division_scan`.
-    """
-    o, n = dd.offset, dd.n_dof
-    q_d = q[o : o + n]
-    xi = jnp.einsum("szan,n->sza", dd.Phi_z, q_d) + dd.xi_ref_z
-    xi1, xi2 = xi[:, 0], xi[:, 1]
-    c = _C * dd.h * dd.h
-    ad1, ad2 = jax.vmap(ad)(xi1), jax.vmap(ad)(xi2)
-    Omega = 0.5 * dd.h[:, None] * (xi1 + xi2) + c[:, None] * jnp.einsum(
-        "sab,sb->sa", ad1, xi2
+def _ad_apply(a, b):
+    """``ad(a) b`` for stacks of twists (angular first), by cross products."""
+    w, v = a[..., :3], a[..., 3:]
+    x, y = b[..., :3], b[..., 3:]
+    return jnp.concatenate(
+        [jnp.cross(w, x), jnp.cross(v, x) + jnp.cross(w, y)], axis=-1
     )
-    Od = Odd = None
-    if qd is not None:
-        xid = jnp.einsum("szan,n->sza", dd.Phi_z, qd[o : o + n])
-        xid1, xid2 = xid[:, 0], xid[:, 1]
-        Od = 0.5 * dd.h[:, None] * (xid1 + xid2) + c[:, None] * (
-            jnp.einsum("sab,sb->sa", ad1, xid2) - jnp.einsum("sab,sb->sa", ad2, xid1)
-        )
-        Odd = 2.0 * c[:, None] * jnp.einsum("sab,sb->sa", jax.vmap(ad)(xid1), xid2)
-    return Omega, Od, (xi1, xi2, ad1, ad2, Odd)
 
 
-def batched_kernels(Omegas: list, Ods: list | None = None) -> list:
-    """``exp_and_tangent`` (and, with ``Ods``, its rate) of every step in one call.
+def _Ad(R, p):
+    """Ad(g) for stacks of (R, p), angular first: [[R, 0], [hat(p) R, R]]."""
+    Z = jnp.zeros_like(R)
+    top = jnp.concatenate([R, Z], axis=-1)
+    bottom = jnp.concatenate([hat3_batched(p) @ R, R], axis=-1)
+    return jnp.concatenate([top, bottom], axis=-2)
 
-    ``Omegas``: a list of ``(m_i, 6)`` twists (divisions, joints); returns a list of
-    ``(R, p, T)`` or ``(R, p, T, Tdot)`` per entry. One vectorised kernel for the
-    whole linkage keeps the compiled program small: its size (and compile time)
-    no longer grows with the number of divisions and joints.
+
+def _Ad_inv(R, p):
+    """Ad(g)^-1 for stacks of (R, p): [[R^T, 0], [-R^T hat(p), R^T]]."""
+    Rt = jnp.swapaxes(R, -1, -2)
+    Z = jnp.zeros_like(R)
+    top = jnp.concatenate([Rt, Z], axis=-1)
+    bottom = jnp.concatenate([-Rt @ hat3_batched(p), Rt], axis=-1)
+    return jnp.concatenate([top, bottom], axis=-2)
+
+
+def hat3_batched(p):
+    """hat(p) for a stack of 3-vectors ``(..., 3) -> (..., 3, 3)``."""
+    z = jnp.zeros_like(p[..., 0])
+    x, y, w = p[..., 0], p[..., 1], p[..., 2]
+    return jnp.stack(
+        [
+            jnp.stack([z, -w, y], axis=-1),
+            jnp.stack([w, z, -x], axis=-1),
+            jnp.stack([-y, x, z], axis=-1),
+        ],
+        axis=-2,
+    )
+
+
+class Steps(NamedTuple):
+    """Every Magnus step of the linkage (flat, in :class:`StepData` order).
+
+    ``R, p, T``: exp(Omega) and the tangent operator; ``xi1, xi2``: strains at the
+    Zanna points; with velocities also ``Td`` (dT/dt), ``Od`` (dOmega/dt) and
+    ``Odd`` (its velocity-product part, qdd = 0).
     """
-    if not Omegas:
-        return []
-    sizes = np.cumsum([O.shape[0] for O in Omegas])[:-1]
-    Om = jnp.concatenate(Omegas)
-    if Ods is None:
-        out = jax.vmap(exp_and_tangent)(Om)
-    else:
-        (R, p, T), (_, _, Td) = jax.vmap(
-            lambda O, dO: jax.jvp(exp_and_tangent, (O,), (dO,))
-        )(Om, jnp.concatenate(Ods))
-        out = (R, p, T, Td)
-    parts = [jnp.split(x, sizes) for x in out]
-    return list(zip(*parts, strict=True))
+
+    R: Array
+    p: Array
+    T: Array
+    xi1: Array
+    xi2: Array
+    Td: Array | None = None
+    Od: Array | None = None
+    Odd: Array | None = None
 
 
-def step_kernels(data: LinkageData, q, qd=None) -> tuple[list, list]:
-    """Kernels of every joint and division step of the linkage, in one call.
+def steps(data: LinkageData, q, qd=None) -> Steps:
+    """Twists and exp/tangent kernels of every step of the linkage in one batch.
 
-    Every step's twist depends on q alone, so all of them are formed first
-    (:func:`division_twists`, joint twists ``Phi_j q_j``) and go through one
-    :func:`batched_kernels` call. Returns ``(kernels, twists)``: the kernels in link
-    order (a link's joint, if it has coordinates, then its divisions) and the
-    divisions' :func:`division_twists`.
+    ``Omega = h/2 (xi_1 + xi_2) + c ad(xi_1) xi_2`` (``c = 0`` for joints) for all
+    steps at once, then one vectorised :func:`exp_and_tangent` (with its forward-mode
+    rate when ``qd`` is given).
     """
-    Omegas, Ods, twists = [], [], []
-    for ld in data.links:
-        nj = ld.joint_Phi.shape[1]
-        if nj:
-            sl = slice(ld.joint_offset, ld.joint_offset + nj)
-            Omegas.append((ld.joint_Phi @ q[sl])[None])
-            if qd is not None:
-                Ods.append((ld.joint_Phi @ qd[sl])[None])
-        for dd in ld.divisions if ld.soft else ():
-            tw = division_twists(dd, q, qd)
-            twists.append(tw)
-            Omegas.append(tw[0])
-            if qd is not None:
-                Ods.append(tw[1])
-    return batched_kernels(Omegas, None if qd is None else Ods), twists
+    st = data.steps
+    xi = jnp.einsum("szan,n->sza", st.Phi_z, q) + st.xi_ref_z
+    xi1, xi2 = xi[:, 0], xi[:, 1]
+    h, c = st.h[:, None], st.c[:, None]
+    Omega = 0.5 * h * (xi1 + xi2) + c * _ad_apply(xi1, xi2)
+    if qd is None:
+        R, p, T = jax.vmap(exp_and_tangent)(Omega)
+        return Steps(R, p, T, xi1, xi2)
+    xid = jnp.einsum("szan,n->sza", st.Phi_z, qd)
+    xid1, xid2 = xid[:, 0], xid[:, 1]
+    Od = 0.5 * h * (xid1 + xid2) + c * (_ad_apply(xi1, xid2) - _ad_apply(xi2, xid1))
+    Odd = 2.0 * c * _ad_apply(xid1, xid2)
+    (R, p, T), (_, _, Td) = jax.vmap(
+        lambda O, dO: jax.jvp(exp_and_tangent, (O,), (dO,))
+    )(Omega, Od)
+    return Steps(R, p, T, xi1, xi2, Td, Od, Odd)
 
 
-def _division_scan(g0, J0, dd: DivisionData, V, kernel, twists, rates=None):
-    """Poses and Jacobians at every point of one division (first point included).
+def step_jacobians(data: LinkageData, k: Steps, V) -> Array:
+    """``dOmega V`` of every step: ``(n_steps, 6, cols)`` (``V`` None: identity)."""
+    st = data.steps
+    P = st.Phi_z if V is None else jnp.einsum("szan,nk->szak", st.Phi_z, V)
+    P1, P2 = P[:, 0], P[:, 1]
+    h, c = st.h[:, None, None], st.c[:, None, None]
+    ad1, ad2 = jax.vmap(ad)(k.xi1), jax.vmap(ad)(k.xi2)
+    return 0.5 * h * (P1 + P2) + c * (ad1 @ P2 - ad2 @ P1)
 
-    Vectorised over the division's steps: every Magnus twist depends on q alone, so
-    all exp(Omega_a) and T(Omega_a) are evaluated at once; the only sequential part is
-    the prefix product of the step poses (an associative scan, log depth). In the
-    frame of the division's first point the Jacobian recursion is a prefix sum,
+
+def chain_layout(data: LinkageData) -> tuple[list, int]:
+    """Chains of consecutive steps in :class:`StepData` order and the longest one.
+
+    Returns ``([(link, division or None for the joint, first step, n_steps)], m)``.
+    """
+    out, s = [], 0
+    for i, ld in enumerate(data.links):
+        if ld.joint_Phi.shape[1]:
+            out.append((i, None, s, 1))
+            s += 1
+        for j, dd in enumerate(ld.divisions if ld.soft else ()):
+            m = dd.h.shape[0]
+            out.append((i, j, s, m))
+            s += m
+    return out, max((ch[3] for ch in out), default=0)
+
+
+def _by_chain(x, layout, fill):
+    """Flat per-step array -> ``(n_chains, m_max, ...)``, padded with ``fill``."""
+    chains, m = layout
+    n = x.shape[0]
+    idx = np.full((len(chains), m), n)
+    for k, (_, _, s, mk) in enumerate(chains):
+        idx[k, :mk] = np.arange(s, s + mk)
+    pad = jnp.broadcast_to(jnp.asarray(fill, x.dtype), (1,) + x.shape[1:])
+    return jnp.concatenate([x, pad])[idx]
+
+
+def _prefix_poses(R, p):
+    """Poses ``G_a = E_0 ... E_{a-1}`` relative to each chain's first point.
+
+    ``R, p``: ``(n_chains, m, ...)``; returns ``(R_G, p_G)`` of shape
+    ``(n_chains, m + 1, ...)`` (``G_0 = I``), by a log-depth associative scan.
+    """
+
+    def compose(a, b):
+        Ra, pa = a
+        Rb, pb = b
+        return Ra @ Rb, pa + jnp.einsum("...ab,...b->...a", Ra, pb)
+
+    RG, pG = lax.associative_scan(compose, (R, p), axis=1)
+    eye = jnp.broadcast_to(jnp.eye(3, dtype=R.dtype), R[:, :1].shape)
+    return (
+        jnp.concatenate([eye, RG], axis=1),
+        jnp.concatenate([jnp.zeros_like(p[:, :1]), pG], axis=1),
+    )
+
+
+def _cumsum0(x):
+    """Prefix sums along axis 1 with a leading zero: ``(n, m) -> (n, m + 1)``."""
+    return jnp.concatenate([jnp.zeros_like(x[:, :1]), jnp.cumsum(x, axis=1)], axis=1)
+
+
+class ChainTerms(NamedTuple):
+    """Per-chain quantities relative to each chain's first point (padded).
+
+    ``RG, pG``: poses of the points relative to the first; ``Ginv``: their
+    Ad^-1; ``relJ = Ad(G_a)^-1 sum_{b<a} Ad(G_b) T_b dOmega_b V``; with velocities
+    ``rel_eta`` (the twist of point a relative to the first, in its own frame) and
+    ``rel_etadot`` (its velocity-product rate), see :func:`chain_terms`.
+    """
+
+    RG: Array
+    pG: Array
+    Ginv: Array
+    relJ: Array | None
+    rel_eta: Array | None = None
+    rel_etadot: Array | None = None
+
+
+def chain_terms(data: LinkageData, k: Steps, layout, dOmegaV=None) -> ChainTerms:
+    """Poses, Jacobian and twist increments of every chain, all chains at once.
+
+    Along a chain the pose is a prefix product and, in the frame of the chain's
+    first point, the Jacobian recursion is a prefix sum,
 
         Ad(G_a) J_a = J_0 + sum_{b<a} Ad(G_b) T_b dOmega_b,
 
-    with G_a the pose of point a relative to the first point. ``J`` here is the
-    Jacobian times the column block ``V`` (identity: the Jacobian; ``qd``: twists).
+    so ``J_a = Ad(G_a)^-1 J_0 + relJ_a``. With velocities, ``y_b = T_b Omegadot_b``
+    and ``d/dt Ad(G) x = Ad(G) (xdot + ad(G^-1 Gdot) x)`` give the twists
+    ``eta_a = Ad(G_a)^-1 eta_0 + rel_eta_a`` and their velocity-product rates
 
-    With ``rates = (eta_0, etadot_0, qd)`` (and ``V`` the identity) the twists
-    ``eta_a = J_a qd`` and their velocity-product rates ``etadot_a = Jdot_a qd`` come
-    from the same prefix sums, differentiated in time: with ``y_b = T_b Omegadot_b``,
-    ``V_b = eta_b - Ad(G_b)^-1 eta_0`` (the body twist of point b relative to the
-    first point) and ``d/dt Ad(G) x = Ad(G) (xdot + ad(G^-1 Gdot) x)``,
+        etadot_a = Ad(G_a)^-1 etadot_0 + rel_etadot_a + ad(Ad(G_a)^-1 eta_0) eta_a,
+        rel_etadot_a = Ad(G_a)^-1 sum_{b<a} Ad(G_b) (ydot_b + ad(rel_eta_b) y_b),
 
-        etadot_a = Ad(G_a)^-1 (etadot_0 + sum_{b<a} Ad(G_b) (ydot_b + ad(V_b) y_b))
-                   + ad(Ad(G_a)^-1 eta_0) eta_a,
-
-    ``ydot_b = Tdot_b Omegadot_b + T_b Omegaddot_b``, ``Omegadot = dOmega qd``,
-    ``Omegaddot = 2 sqrt(3) h^2/12 ad(Phi_1 qd) (Phi_2 qd)`` (qdd = 0) and ``Tdot`` a
-    forward-mode derivative of the elementwise kernel only: no derivative of the
-    prefix product is taken.
-
-    ``kernel``: the steps' ``(R, p, T[, Tdot])`` and ``twists`` their
-    :func:`division_twists` (both from the batched pass of :func:`_tree_pass`).
+    with ``ydot_b = Tdot_b Omegadot_b + T_b Omegaddot_b``. Nothing here depends on
+    the chain's first point (its pose, Jacobian, twist), so every chain of the
+    linkage is evaluated in one batch; :func:`_tree_pass` composes them along the
+    tree. Padding steps are identities with zero twist rates.
     """
-    o, n = dd.offset, dd.n_dof
-    c = _C * dd.h * dd.h
-    _, Od, (_, _, ad1, ad2, Odd) = twists
-    if rates is None:
-        R, p, T = kernel[:3]
-    else:
-        eta0, etadot0, qd = rates
-        R, p, T, Td = kernel
-    E = jax.vmap(pose)(R, p)
-    G = _prefix_poses(E)  # (m + 1, 4, 4)
-    gs = jnp.einsum("ab,pbc->pac", g0, G)
-    Ginv = jax.vmap(lambda g: Ad_inv_Rp(g[:3, :3], g[:3, 3]))(G)
-    Js = jnp.broadcast_to(J0, (G.shape[0],) + J0.shape)
-    if n:
-        AdG = jax.vmap(_Ad)(G[:-1])  # (m, 6, 6)
-        P1, P2 = dd.Phi_z[:, 0], dd.Phi_z[:, 1]
-        dOmega = 0.5 * dd.h[:, None, None] * (P1 + P2) + c[:, None, None] * (
-            jnp.einsum("sab,sbn->san", ad1, P2) - jnp.einsum("sab,sbn->san", ad2, P1)
-        )
-        dOmega = jnp.einsum("san,nk->sak", dOmega, V[o : o + n])
-        S = jnp.einsum("sab,sbc,sck->sak", AdG, T, dOmega)  # (m, 6, k)
-        Js = Js + jnp.concatenate([jnp.zeros_like(S[:1]), jnp.cumsum(S, axis=0)])
-    Js = jnp.einsum("pab,pbn->pan", Ginv, Js)
-    if rates is None:
-        return gs, Js, None
-    eta = jnp.einsum("pai,i->pa", Js, qd)
-    Ge0 = jnp.einsum("pab,b->pa", Ginv, eta0)  # Ad(G_a)^-1 eta_0
-    if n:
-        y = jnp.einsum("sab,sb->sa", T, Od)
-        yd = jnp.einsum("sab,sb->sa", Td, Od) + jnp.einsum("sab,sb->sa", T, Odd)
-        Vb = eta[:-1] - Ge0[:-1]
-        inc = yd + jnp.einsum("sab,sb->sa", jax.vmap(ad)(Vb), y)
-        inc = jnp.einsum("sab,sb->sa", AdG, inc)
-        acc = etadot0[None] + jnp.concatenate(
-            [jnp.zeros_like(inc[:1]), jnp.cumsum(inc, 0)]
-        )
-    else:
-        acc = jnp.broadcast_to(etadot0, (G.shape[0], 6))
-    etadot = jnp.einsum("pab,pb->pa", Ginv, acc) + jnp.einsum(
-        "pab,pb->pa", jax.vmap(ad)(Ge0), eta
+    eye3, eye6 = jnp.eye(3, dtype=k.R.dtype), jnp.eye(6, dtype=k.R.dtype)
+    R = _by_chain(k.R, layout, eye3)
+    p = _by_chain(k.p, layout, 0.0)
+    RG, pG = _prefix_poses(R, p)
+    Ginv = _Ad_inv(RG, pG)
+    AdG = _Ad(RG[:, :-1], pG[:, :-1])
+    if dOmegaV is None and k.Od is None:
+        return ChainTerms(RG, pG, Ginv, None)
+    T = _by_chain(k.T, layout, eye6)
+    relJ = None
+    if dOmegaV is not None:
+        S = AdG @ T @ _by_chain(dOmegaV, layout, 0.0)
+        relJ = Ginv @ _cumsum0(S)
+    if k.Od is None:
+        return ChainTerms(RG, pG, Ginv, relJ)
+    Od = _by_chain(k.Od, layout, 0.0)
+    y = jnp.einsum("nsab,nsb->nsa", T, Od)
+    yd = jnp.einsum("nsab,nsb->nsa", _by_chain(k.Td, layout, 0.0), Od) + jnp.einsum(
+        "nsab,nsb->nsa", T, _by_chain(k.Odd, layout, 0.0)
     )
-    return gs, Js, (eta, etadot)
+    rel_eta = jnp.einsum(
+        "nsab,nsb->nsa", Ginv, _cumsum0(jnp.einsum("nsab,nsb->nsa", AdG, y))
+    )
+    inc = jnp.einsum("nsab,nsb->nsa", AdG, yd + _ad_apply(rel_eta[:, :-1], y))
+    rel_etadot = jnp.einsum("nsab,nsb->nsa", Ginv, _cumsum0(inc))
+    return ChainTerms(RG, pG, Ginv, relJ, rel_eta, rel_etadot)
+
+
+def _pose(R, p):
+    """4x4 poses from stacks of R and p."""
+    top = jnp.concatenate([R, p[..., None]], axis=-1)
+    bottom = jnp.broadcast_to(
+        jnp.asarray([0.0, 0.0, 0.0, 1.0], dtype=R.dtype), R.shape[:-2] + (1, 4)
+    )
+    return jnp.concatenate([top, bottom], axis=-2)
+
+
+def chain_poses(ct: ChainTerms, chain: int, m: int, g0):
+    """World poses of the ``m + 1`` points of chain ``chain`` from its start ``g0``."""
+    return jnp.einsum(
+        "ab,pbc->pac", g0, _pose(ct.RG[chain, : m + 1], ct.pG[chain, : m + 1])
+    )
 
 
 def poses_and_jacobians(
@@ -249,12 +294,20 @@ def kinematics_and_rates(
 
 
 def _tree_pass(data: LinkageData, q, V, qd):
-    """Poses, Jacobians (times ``V``) and, when ``qd`` is given, twists and rates."""
+    """Poses, Jacobians (times ``V``) and, when ``qd`` is given, twists and rates.
+
+    One batch for every step (:func:`steps`) and every chain (:func:`chain_terms`);
+    the Python loop over the static tree only composes each chain with the pose,
+    Jacobian and twist at its first point (a few small products per chain).
+    """
     n = data.n_dof
     dtype = q.dtype
-    V = jnp.eye(n, dtype=dtype) if V is None else V
-    k = V.shape[1]
+    k_cols = n if V is None else V.shape[1]
     zero6 = jnp.zeros(6, dtype=dtype)
+    layout = chain_layout(data)
+    k = steps(data, q, qd)
+    ct = chain_terms(data, k, layout, step_jacobians(data, k, V))
+    chain_of = {(ch[0], ch[1]): c for c, ch in enumerate(layout[0])}
     tips: list = []
     gs, Js, etas, etadots = [], [], [], []
 
@@ -270,32 +323,41 @@ def _tree_pass(data: LinkageData, q, V, qd):
         A = Ad_inv(h)
         return g @ h, A @ J, None if r is None else (A @ r[0], A @ r[1])
 
-    kernels, twists = step_kernels(data, q, qd)
-    kernels, twists_it = iter(kernels), iter(twists)
+    def run_chain(c, m, g, J, r):
+        """Poses, Jacobians and rates at the ``m + 1`` points of chain ``c``."""
+        Gi = ct.Ginv[c, : m + 1]
+        gc = chain_poses(ct, c, m, g)
+        Jc = jnp.einsum("pab,bk->pak", Gi, J) + ct.relJ[c, : m + 1]
+        if r is None:
+            return gc, Jc, None
+        Ge0 = jnp.einsum("pab,b->pa", Gi, r[0])
+        eta = Ge0 + ct.rel_eta[c, : m + 1]
+        etadot = (
+            jnp.einsum("pab,b->pa", Gi, r[1])
+            + ct.rel_etadot[c, : m + 1]
+            + _ad_apply(Ge0, eta)
+        )
+        return gc, Jc, (eta, etadot)
 
-    for ld in data.links:
+    for i, ld in enumerate(data.links):
         if ld.parent == 0:
-            g, J = jnp.eye(4, dtype=dtype), jnp.zeros((6, k), dtype=dtype)
+            g, J = jnp.eye(4, dtype=dtype), jnp.zeros((6, k_cols), dtype=dtype)
             r = None if qd is None else (zero6, zero6)
         else:
             g, J, r = tips[ld.parent - 1]
         g, J, r = transport(g, J, r, ld.placement)
-        nj = ld.joint_Phi.shape[1]
-        if nj:
-            sl = slice(ld.joint_offset, ld.joint_offset + nj)
-            rj = None if qd is None else (r[0], r[1], qd[sl])
-            g, J, r = _joint_step(g, J, ld.joint_Phi, next(kernels), V[sl], rj)
+        if ld.joint_Phi.shape[1]:
+            gc, Jc, rc = run_chain(chain_of[(i, None)], 1, g, J, r)
+            g, J = gc[-1], Jc[-1]
+            r = None if rc is None else (rc[0][-1], rc[1][-1])
         append(g, J, r)
         g, J, r = transport(g, J, r, ld.g_i)
         if ld.soft:
-            for dd in ld.divisions:
-                rd = None if qd is None else (r[0], r[1], qd)
-                gd, Jd, r_all = _division_scan(
-                    g, J, dd, V, next(kernels), next(twists_it), rd
-                )
-                append(gd, Jd, r_all, batched=True)
+            for j, dd in enumerate(ld.divisions):
+                gd, Jd, rd = run_chain(chain_of[(i, j)], dd.h.shape[0], g, J, r)
+                append(gd, Jd, rd, batched=True)
                 g, J = gd[-1], Jd[-1]
-                r = None if r_all is None else (r_all[0][-1], r_all[1][-1])
+                r = None if rd is None else (rd[0][-1], rd[1][-1])
         else:
             append(g, J, r)
         g, J, r = transport(g, J, r, ld.g_f)

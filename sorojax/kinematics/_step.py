@@ -23,6 +23,7 @@ import math
 from fractions import Fraction
 
 import jax.numpy as jnp
+import numpy as np
 
 from ..lie import hat3
 
@@ -54,11 +55,9 @@ _F = tuple(
 )
 
 
-def _horner(coeffs, x):
-    out = jnp.full_like(x, coeffs[-1])
-    for c in coeffs[-2::-1]:
-        out = out * x + c
-    return out
+# Rows: powers of theta^2 (highest last); columns: A, B, C, D, F. One Horner loop on
+# the stacked columns keeps the traced program small (same arithmetic per entry).
+_SERIES = np.array([_A, _B, _C, _D, _F]).T
 
 
 def coefficients(theta2):
@@ -74,8 +73,14 @@ def coefficients(theta2):
         (t2 / 2 + c - 1.0) / (t2 * t2),
         (2.0 * t - 3.0 * s + t * c) / (2.0 * t2 * t2 * t),
     )
-    series = tuple(_horner(k, theta2) for k in (_A, _B, _C, _D, _F))
-    return tuple(jnp.where(small, a, b) for a, b in zip(series, closed, strict=True))
+    x = theta2[..., None]
+    series = jnp.broadcast_to(
+        jnp.asarray(_SERIES[-1], theta2.dtype), x.shape[:-1] + (5,)
+    )
+    for row in _SERIES[-2::-1]:
+        series = series * x + jnp.asarray(row, theta2.dtype)
+    out = jnp.where(small[..., None], series, jnp.stack(closed, axis=-1))
+    return tuple(out[..., i] for i in range(5))
 
 
 def _outer(a, b):

@@ -21,6 +21,7 @@ from ._linkage import Linkage
 from ._section import section_matrices
 
 _ZANNA = (0.5 - math.sqrt(3.0) / 6.0, 0.5 + math.sqrt(3.0) / 6.0)
+_C = math.sqrt(3.0) / 12.0  # Magnus commutator weight: c = _C h^2
 
 
 class DivisionData(eqx.Module):
@@ -68,6 +69,61 @@ class LinkData(eqx.Module):
     divisions: tuple[DivisionData, ...]
 
 
+class StepData(eqx.Module):
+    """Every Magnus step of the linkage in one batch, full column width.
+
+    In link order: a link's joint (if it has coordinates: one step with ``h = 1``,
+    ``c = 0`` and both Zanna bases the joint basis, so that ``Omega = Phi_j q_j``
+    exactly), then the steps of its divisions. Batching them keeps the traced
+    program's size independent of the number of divisions and joints.
+
+    Attributes:
+        h: (n_steps,) step lengths [m] (1 for joints).
+        c: (n_steps,) Magnus commutator weights ``sqrt(3) h^2 / 12`` (0 for joints).
+        Phi_z: (n_steps, 2, 6, n_dof) bases at the two Zanna points, zero outside
+            the step's own columns.
+        xi_ref_z: (n_steps, 2, 6) reference strains at the Zanna points.
+    """
+
+    h: Float[Array, " n_steps"]
+    c: Float[Array, " n_steps"]
+    Phi_z: Float[Array, "n_steps 2 6 n_dof"]
+    xi_ref_z: Float[Array, "n_steps 2 6"]
+
+
+def _step_data(links: list, n: int) -> StepData:
+    h, c, Phi_z, xr = [], [], [], []
+    for ld in links:
+        jo, jn = ld.joint_offset, ld.joint_Phi.shape[1]
+        if jn:
+            P = jnp.zeros((6, n)).at[:, jo : jo + jn].set(ld.joint_Phi)
+            h.append(jnp.ones(1))
+            c.append(jnp.zeros(1))
+            Phi_z.append(jnp.stack([P, P])[None])
+            xr.append(jnp.zeros((1, 2, 6)))
+        for dd in ld.divisions if ld.soft else ():
+            m, o = dd.h.shape[0], dd.offset
+            h.append(dd.h)
+            c.append(_C * dd.h * dd.h)
+            Phi_z.append(
+                jnp.zeros((m, 2, 6, n)).at[..., o : o + dd.n_dof].set(dd.Phi_z)
+            )
+            xr.append(dd.xi_ref_z)
+    if not h:
+        return StepData(
+            h=jnp.zeros(0),
+            c=jnp.zeros(0),
+            Phi_z=jnp.zeros((0, 2, 6, n)),
+            xi_ref_z=jnp.zeros((0, 2, 6)),
+        )
+    return StepData(
+        h=jnp.concatenate(h),
+        c=jnp.concatenate(c),
+        Phi_z=jnp.concatenate(Phi_z),
+        xi_ref_z=jnp.concatenate(xr),
+    )
+
+
 class LinkageData(eqx.Module):
     """Everything the kernels need, derived from a :class:`Linkage`.
 
@@ -80,10 +136,12 @@ class LinkageData(eqx.Module):
         K: (n_dof, n_dof) generalised stiffness.
         D: (n_dof, n_dof) generalised damping.
         gravity: (3,) gravitational acceleration.
+        steps: every Magnus step (joints and divisions) in one batch.
     """
 
     n_dof: int = eqx.field(static=True)
     links: tuple[LinkData, ...]
+    steps: StepData
     point_weight: Float[Array, " n_points"]
     point_M: Float[Array, "n_points 6 6"]
     K: Float[Array, "n_dof n_dof"]
@@ -182,6 +240,7 @@ def precompute(linkage: Linkage) -> LinkageData:
     return LinkageData(
         n_dof=n,
         links=tuple(links),
+        steps=_step_data(links, n),
         point_weight=point_weight,
         point_M=point_M,
         K=K,
