@@ -23,7 +23,7 @@ import numpy as np
 from jax import lax
 from jaxtyping import Array, Float
 
-from ..lie import Ad_inv, ad
+from ..lie import ad
 from ..model._precompute import LinkageData
 from ._step import exp_and_tangent
 
@@ -123,31 +123,92 @@ def step_jacobians(data: LinkageData, k: Steps, V) -> Array:
     return 0.5 * h * (P1 + P2) + c * (ad1 @ P2 - ad2 @ P1)
 
 
-def chain_layout(data: LinkageData) -> tuple[list, int]:
-    """Chains of consecutive steps in :class:`StepData` order and the longest one.
+class ChainLayout(NamedTuple):
+    """Static layout of the per-link chains (numpy index arrays, built at trace time).
 
-    Returns ``([(link, division or None for the joint, first step, n_steps)], m)``.
+    Link ``l``'s chain is its steps in order: placement (constant), joint (if it has
+    coordinates), ``g_i`` (constant), the steps of its divisions, ``g_f`` (constant).
+    Prefix index ``a`` of a chain is the point after its first ``a`` steps (``a = 0``:
+    the parent's tip). Attributes: ``idx_Rp``, ``idx_rate`` ``(n_links, m)`` sources
+    of every slot's ``(R, p)`` and of its other step arrays in the arrays that
+    :func:`chain_terms` builds (constant steps and padding take identities / zeros);
+    ``point_link``, ``point_slot`` ``(n_points,)`` the chain and prefix index of every
+    significant point; ``tip_slot`` ``(n_links,)``; ``step_link``, ``step_slot``
+    ``(n_steps,)`` the chain and slot of every real step; ``m`` the longest chain.
     """
-    out, s = [], 0
+
+    idx_Rp: np.ndarray
+    idx_rate: np.ndarray
+    point_link: np.ndarray
+    point_slot: np.ndarray
+    tip_slot: np.ndarray
+    step_link: np.ndarray
+    step_slot: np.ndarray
+    m: int
+
+
+def chain_layout(data: LinkageData) -> ChainLayout:
+    """The :class:`ChainLayout` of ``data`` (static: from shapes only)."""
+    n_links = len(data.links)
+    n_steps = data.steps.h.shape[0]
+    pad = n_steps + 3 * n_links  # identity slot, after the real and constant steps
+    rows_Rp, rows_rate, pl, ps, tips = [], [], [], [], []
+    s = 0
     for i, ld in enumerate(data.links):
+        Rp, rate = [n_steps + 3 * i], [pad]  # placement
         if ld.joint_Phi.shape[1]:
-            out.append((i, None, s, 1))
+            Rp.append(s)
+            rate.append(s)
             s += 1
-        for j, dd in enumerate(ld.divisions if ld.soft else ()):
-            m = dd.h.shape[0]
-            out.append((i, j, s, m))
-            s += m
-    return out, max((ch[3] for ch in out), default=0)
+        pl.append(i)
+        ps.append(len(Rp))  # joint point
+        Rp.append(n_steps + 3 * i + 1)  # g_i
+        rate.append(pad)
+        if ld.soft:
+            for dd in ld.divisions:
+                m = dd.h.shape[0]
+                first = len(Rp)
+                Rp.extend(range(s, s + m))
+                rate.extend(range(s, s + m))
+                s += m
+                pl.extend([i] * (m + 1))
+                ps.extend(range(first, first + m + 1))
+        else:
+            pl.append(i)
+            ps.append(len(Rp))  # centre of mass
+        Rp.append(n_steps + 3 * i + 2)  # g_f
+        rate.append(pad)
+        pl.append(i)
+        ps.append(len(Rp))  # tip
+        tips.append(len(Rp))
+        rows_Rp.append(Rp)
+        rows_rate.append(rate)
+    m = max(len(r) for r in rows_Rp)
+    idx_Rp = np.full((n_links, m), pad)
+    idx_rate = np.full((n_links, m), pad)
+    for i, (a, b) in enumerate(zip(rows_Rp, rows_rate, strict=True)):
+        idx_Rp[i, : len(a)] = a
+        idx_rate[i, : len(b)] = b
+    step_link, step_slot = np.zeros(n_steps, int), np.zeros(n_steps, int)
+    for i, row in enumerate(rows_rate):
+        for a, src in enumerate(row):
+            if src < n_steps:
+                step_link[src], step_slot[src] = i, a
+    return ChainLayout(
+        idx_Rp,
+        idx_rate,
+        np.array(pl, int),
+        np.array(ps, int),
+        np.array(tips, int),
+        step_link,
+        step_slot,
+        m,
+    )
 
 
-def _by_chain(x, layout, fill):
-    """Flat per-step array -> ``(n_chains, m_max, ...)``, padded with ``fill``."""
-    chains, m = layout
-    n = x.shape[0]
-    idx = np.full((len(chains), m), n)
-    for k, (_, _, s, mk) in enumerate(chains):
-        idx[k, :mk] = np.arange(s, s + mk)
-    pad = jnp.broadcast_to(jnp.asarray(fill, x.dtype), (1,) + x.shape[1:])
+def _gather(x, idx, fill, extra: int):
+    """Rows ``idx`` of ``x`` extended by ``extra`` rows of ``fill``."""
+    pad = jnp.broadcast_to(jnp.asarray(fill, x.dtype), (extra,) + x.shape[1:])
     return jnp.concatenate([x, pad])[idx]
 
 
@@ -193,8 +254,16 @@ class ChainTerms(NamedTuple):
     rel_etadot: Array | None = None
 
 
-def chain_terms(data: LinkageData, k: Steps, layout, dOmegaV=None) -> ChainTerms:
-    """Poses, Jacobian and twist increments of every chain, all chains at once.
+def _fixed_transforms(data: LinkageData):
+    """``(R, p)`` of every link's placement, g_i and g_f: ``(3 n_links, ...)``."""
+    G = jnp.stack([h for ld in data.links for h in (ld.placement, ld.g_i, ld.g_f)])
+    return G[:, :3, :3], G[:, :3, 3]
+
+
+def chain_terms(
+    data: LinkageData, k: Steps, lay: ChainLayout, dOmegaV=None
+) -> ChainTerms:
+    """Poses, Jacobian and twist increments of every link's chain, all at once.
 
     Along a chain the pose is a prefix product and, in the frame of the chain's
     first point, the Jacobian recursion is a prefix sum,
@@ -209,30 +278,33 @@ def chain_terms(data: LinkageData, k: Steps, layout, dOmegaV=None) -> ChainTerms
         rel_etadot_a = Ad(G_a)^-1 sum_{b<a} Ad(G_b) (ydot_b + ad(rel_eta_b) y_b),
 
     with ``ydot_b = Tdot_b Omegadot_b + T_b Omegaddot_b``. Nothing here depends on
-    the chain's first point (its pose, Jacobian, twist), so every chain of the
-    linkage is evaluated in one batch; :func:`_tree_pass` composes them along the
-    tree. Padding steps are identities with zero twist rates.
+    the chain's first point (the parent's tip), so every link is evaluated in one
+    batch; :func:`_tree_pass` composes them along the tree. Constant transforms and
+    padding are steps with zero dOmega (padding: identities).
     """
-    eye3, eye6 = jnp.eye(3, dtype=k.R.dtype), jnp.eye(6, dtype=k.R.dtype)
-    R = _by_chain(k.R, layout, eye3)
-    p = _by_chain(k.p, layout, 0.0)
+    n_links = len(data.links)
+    dtype = k.R.dtype
+    eye3, eye6 = jnp.eye(3, dtype=dtype), jnp.eye(6, dtype=dtype)
+    Rf, pf = _fixed_transforms(data)
+    R = _gather(jnp.concatenate([k.R, Rf]), lay.idx_Rp, eye3, 1)
+    p = _gather(jnp.concatenate([k.p, pf]), lay.idx_Rp, 0.0, 1)
     RG, pG = _prefix_poses(R, p)
     Ginv = _Ad_inv(RG, pG)
-    AdG = _Ad(RG[:, :-1], pG[:, :-1])
     if dOmegaV is None and k.Od is None:
         return ChainTerms(RG, pG, Ginv, None)
-    T = _by_chain(k.T, layout, eye6)
+    AdG = _Ad(RG[:, :-1], pG[:, :-1])
+    extra = 3 * n_links + 1
+    T = _gather(k.T, lay.idx_rate, eye6, extra)
     relJ = None
     if dOmegaV is not None:
-        S = AdG @ T @ _by_chain(dOmegaV, layout, 0.0)
+        S = AdG @ T @ _gather(dOmegaV, lay.idx_rate, 0.0, extra)
         relJ = Ginv @ _cumsum0(S)
     if k.Od is None:
         return ChainTerms(RG, pG, Ginv, relJ)
-    Od = _by_chain(k.Od, layout, 0.0)
+    Od = _gather(k.Od, lay.idx_rate, 0.0, extra)
     y = jnp.einsum("nsab,nsb->nsa", T, Od)
-    yd = jnp.einsum("nsab,nsb->nsa", _by_chain(k.Td, layout, 0.0), Od) + jnp.einsum(
-        "nsab,nsb->nsa", T, _by_chain(k.Odd, layout, 0.0)
-    )
+    yd = jnp.einsum("nsab,nsb->nsa", _gather(k.Td, lay.idx_rate, 0.0, extra), Od)
+    yd = yd + jnp.einsum("nsab,nsb->nsa", T, _gather(k.Odd, lay.idx_rate, 0.0, extra))
     rel_eta = jnp.einsum(
         "nsab,nsb->nsa", Ginv, _cumsum0(jnp.einsum("nsab,nsb->nsa", AdG, y))
     )
@@ -250,11 +322,27 @@ def _pose(R, p):
     return jnp.concatenate([top, bottom], axis=-2)
 
 
-def chain_poses(ct: ChainTerms, chain: int, m: int, g0):
-    """World poses of the ``m + 1`` points of chain ``chain`` from its start ``g0``."""
-    return jnp.einsum(
-        "ab,pbc->pac", g0, _pose(ct.RG[chain, : m + 1], ct.pG[chain, : m + 1])
+def link_base_poses(data: LinkageData, ct: ChainTerms, lay: ChainLayout) -> Array:
+    """Pose of every link's chain start (its parent's tip): ``(n_links, 4, 4)``."""
+    tips_rel = _pose(
+        ct.RG[np.arange(len(data.links)), lay.tip_slot],
+        ct.pG[np.arange(len(data.links)), lay.tip_slot],
     )
+    eye = jnp.eye(4, dtype=tips_rel.dtype)
+    bases, tips = [], []
+    for i, ld in enumerate(data.links):
+        base = eye if ld.parent == 0 else tips[ld.parent - 1]
+        bases.append(base)
+        tips.append(tips_rel[i] if ld.parent == 0 else base @ tips_rel[i])
+    return jnp.stack(bases)
+
+
+def point_poses(ct: ChainTerms, lay: ChainLayout, bases) -> Array:
+    """World poses of all significant points from the links' base poses."""
+    rel = _pose(
+        ct.RG[lay.point_link, lay.point_slot], ct.pG[lay.point_link, lay.point_slot]
+    )
+    return bases[lay.point_link] @ rel
 
 
 def poses_and_jacobians(
@@ -296,75 +384,73 @@ def kinematics_and_rates(
 def _tree_pass(data: LinkageData, q, V, qd):
     """Poses, Jacobians (times ``V``) and, when ``qd`` is given, twists and rates.
 
-    One batch for every step (:func:`steps`) and every chain (:func:`chain_terms`);
-    the Python loop over the static tree only composes each chain with the pose,
-    Jacobian and twist at its first point (a few small products per chain).
+    One batch for every step (:func:`steps`) and every link's chain
+    (:func:`chain_terms`); the loop over the static tree only carries the tips
+    (one pose product and one 6 x 6 product per link), and every point is then
+    composed with its link's base in one batch.
     """
-    n = data.n_dof
+    n_links = len(data.links)
     dtype = q.dtype
-    k_cols = n if V is None else V.shape[1]
-    zero6 = jnp.zeros(6, dtype=dtype)
-    layout = chain_layout(data)
+    cols = data.n_dof if V is None else V.shape[1]
+    lay = chain_layout(data)
     k = steps(data, q, qd)
-    ct = chain_terms(data, k, layout, step_jacobians(data, k, V))
-    chain_of = {(ch[0], ch[1]): c for c, ch in enumerate(layout[0])}
-    tips: list = []
-    gs, Js, etas, etadots = [], [], [], []
-
-    def append(g, J, r, batched=False):
-        gs.append(g if batched else g[None])
-        Js.append(J if batched else J[None])
-        if r is not None:
-            etas.append(r[0] if batched else r[0][None])
-            etadots.append(r[1] if batched else r[1][None])
-
-    def transport(g, J, r, h):
-        """Through a constant transform ``h``."""
-        A = Ad_inv(h)
-        return g @ h, A @ J, None if r is None else (A @ r[0], A @ r[1])
-
-    def run_chain(c, m, g, J, r):
-        """Poses, Jacobians and rates at the ``m + 1`` points of chain ``c``."""
-        Gi = ct.Ginv[c, : m + 1]
-        gc = chain_poses(ct, c, m, g)
-        Jc = jnp.einsum("pab,bk->pak", Gi, J) + ct.relJ[c, : m + 1]
-        if r is None:
-            return gc, Jc, None
-        Ge0 = jnp.einsum("pab,b->pa", Gi, r[0])
-        eta = Ge0 + ct.rel_eta[c, : m + 1]
-        etadot = (
-            jnp.einsum("pab,b->pa", Gi, r[1])
-            + ct.rel_etadot[c, : m + 1]
-            + _ad_apply(Ge0, eta)
+    ct = chain_terms(data, k, lay, step_jacobians(data, k, V))
+    rows = np.arange(n_links)
+    tip_g = _pose(ct.RG[rows, lay.tip_slot], ct.pG[rows, lay.tip_slot])
+    tip_Gi = ct.Ginv[rows, lay.tip_slot]
+    rates = qd is not None
+    # Base state of each link (its parent's tip): pose and [J | eta | etadot].
+    tip_rel = ct.relJ[rows, lay.tip_slot]
+    if rates:
+        tip_rel = jnp.concatenate(
+            [
+                tip_rel,
+                ct.rel_eta[rows, lay.tip_slot][..., None],
+                ct.rel_etadot[rows, lay.tip_slot][..., None],
+            ],
+            axis=-1,
         )
-        return gc, Jc, (eta, etadot)
-
+    width = cols + (2 if rates else 0)
+    eye4 = jnp.eye(4, dtype=dtype)
+    zero = jnp.zeros((6, width), dtype=dtype)
+    base_g, base_X, tips = [], [], []
     for i, ld in enumerate(data.links):
         if ld.parent == 0:
-            g, J = jnp.eye(4, dtype=dtype), jnp.zeros((6, k_cols), dtype=dtype)
-            r = None if qd is None else (zero6, zero6)
+            g0, X0 = eye4, zero
+            g, X = tip_g[i], tip_rel[i]
         else:
-            g, J, r = tips[ld.parent - 1]
-        g, J, r = transport(g, J, r, ld.placement)
-        if ld.joint_Phi.shape[1]:
-            gc, Jc, rc = run_chain(chain_of[(i, None)], 1, g, J, r)
-            g, J = gc[-1], Jc[-1]
-            r = None if rc is None else (rc[0][-1], rc[1][-1])
-        append(g, J, r)
-        g, J, r = transport(g, J, r, ld.g_i)
-        if ld.soft:
-            for j, dd in enumerate(ld.divisions):
-                gd, Jd, rd = run_chain(chain_of[(i, j)], dd.h.shape[0], g, J, r)
-                append(gd, Jd, rd, batched=True)
-                g, J = gd[-1], Jd[-1]
-                r = None if rd is None else (rd[0][-1], rd[1][-1])
-        else:
-            append(g, J, r)
-        g, J, r = transport(g, J, r, ld.g_f)
-        append(g, J, r)
-        tips.append((g, J, r))
-    rates = None if qd is None else (jnp.concatenate(etas), jnp.concatenate(etadots))
-    return jnp.concatenate(gs), jnp.concatenate(Js), rates
+            g0, X0 = tips[ld.parent - 1]
+            g = g0 @ tip_g[i]
+            X = _compose(tip_Gi[i], X0, tip_rel[i], cols, rates)
+        base_g.append(g0)
+        base_X.append(X0)
+        tips.append((g, X))
+    pl, ps = lay.point_link, lay.point_slot
+    g_pts = jnp.stack(base_g)[pl] @ _pose(ct.RG[pl, ps], ct.pG[pl, ps])
+    rel = ct.relJ[pl, ps]
+    if rates:
+        rel = jnp.concatenate(
+            [rel, ct.rel_eta[pl, ps][..., None], ct.rel_etadot[pl, ps][..., None]],
+            axis=-1,
+        )
+    X = _compose(ct.Ginv[pl, ps], jnp.stack(base_X)[pl], rel, cols, rates)
+    J = X[..., :cols]
+    return g_pts, J, (X[..., cols], X[..., cols + 1]) if rates else None
+
+
+def _compose(Gi, X0, rel, cols: int, rates: bool):
+    """``[J | eta | etadot]`` at points from their chain start's (batched or not).
+
+    ``J = Gi J0 + relJ``, ``eta = Gi eta0 + rel_eta``, ``etadot = Gi etadot0 +
+    rel_etadot + ad(Gi eta0) eta`` (see :func:`chain_terms`).
+    """
+    Y = Gi @ X0
+    X = Y + rel
+    if not rates:
+        return X
+    eta = X[..., cols]
+    etadot = X[..., cols + 1] + _ad_apply(Y[..., cols], eta)
+    return jnp.concatenate([X[..., : cols + 1], etadot[..., None]], axis=-1)
 
 
 def strains(data: LinkageData, q: Float[Array, " n_dof"]) -> Float[Array, "n_points 6"]:
