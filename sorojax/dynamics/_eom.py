@@ -19,6 +19,7 @@ from ..kinematics._api import Kinematics, _as_q
 from ..kinematics._recursion import (
     jacobians_dot,
     kinematics_and_rates,
+    poses_and_jacobians,
     strains,
 )
 from ..model._linkage import Linkage
@@ -254,7 +255,9 @@ def consistent_velocities(
         rows.append(jnp.eye(q.shape[0], dtype=q.dtype)[qi])
         rhs.append(qdp)
     qd0 = jnp.zeros_like(qd)
-    rates = kinematics_and_rates(data, q, qd0)
+    g, J = poses_and_jacobians(data, q)  # at rest: zero twists and rates
+    zeros = jnp.zeros(J.shape[:2], J.dtype)
+    rates = (g, J, zeros, zeros)
     if linkage.closed_loops:  # A from the body Jacobians M needs anyway
         rows.append(constraint_terms_from_kinematics(linkage, *rates)[1])
         rhs.append(jnp.zeros(linkage.n_constraints, q.dtype))
