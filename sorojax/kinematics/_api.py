@@ -12,7 +12,7 @@ from jaxtyping import Array, ArrayLike, Float
 
 from ..model._linkage import Linkage
 from ..model._precompute import precompute
-from ._recursion import jacobians_dot, poses_and_jacobians, strains
+from ._recursion import jacobians_dot, poses, poses_and_jacobians, strains
 
 
 class Kinematics(eqx.Module):
@@ -60,7 +60,7 @@ def forward_kinematics(linkage: Linkage, q: ArrayLike) -> Float[Array, "n_points
         ValueError: ``q`` of the wrong shape.
     """
     q = _as_q(linkage, q)
-    return poses_and_jacobians(precompute(linkage), q)[0]
+    return poses(precompute(linkage), q)
 
 
 @eqx.filter_jit
@@ -112,10 +112,12 @@ def kinematics(
     )
 
 
-@eqx.filter_jit
 def tip_pose(linkage: Linkage, q: ArrayLike, link: int = -1) -> Float[Array, "4 4"]:
-    """World pose of the tip reference point of link ``link`` (1-based; -1 = last)."""
-    q = _as_q(linkage, q)
+    """World pose of the tip reference point of link ``link`` (1-based; -1 = last).
+
+    One compiled program per model structure serves every link (the poses of all
+    points, :func:`forward_kinematics`, indexed outside it).
+    """
     link = linkage.n_links if link == -1 else link
     idx = linkage.tip_point(link)
-    return poses_and_jacobians(precompute(linkage), q)[0][idx]
+    return forward_kinematics(linkage, q)[idx]

@@ -8,13 +8,18 @@ X_a + h (1/2 -+ sqrt(3)/6):
     dOmega = h/2 (Phi_1 + Phi_2) + sqrt(3) h^2/12 (ad(xi_1) Phi_2 - ad(xi_2) Phi_1)
     g_{a+1} = g_a exp(Omega),  J_{a+1} = Ad(exp(Omega))^-1 (J_a + T(Omega) dOmega).
 
-A lumped joint is the same step with Omega = Phi_j q_j. Links run in topological order
-(a Python loop over the static tree); the points of a division are vectorised
-(see :func:`_division_scan`).
-Jacobian columns are full width (n_dof) so that trees compose without bookkeeping.
+A lumped joint is the same step with Omega = Phi_j q_j, and a constant transform
+(placement, g_i, g_f) a step with a fixed exp(Omega) and dOmega = 0. Every twist and
+exp/tangent kernel of the linkage is evaluated in one batch (:func:`steps`); each
+link is one chain of steps whose poses, Jacobians and twist rates relative to the
+chain's start are prefix products and prefix sums, evaluated for all links in one
+padded batch (:func:`chain_terms`); a Python loop over the static tree then only
+carries the links' tips, and every point is composed with its link's start in one
+batch. The compiled program's size no longer grows with the number of divisions and
+joints, only the short tree loop does. Jacobian columns are full width (n_dof) so
+that trees compose without bookkeeping.
 """
 
-import math
 from typing import NamedTuple
 
 import jax
@@ -26,8 +31,6 @@ from jaxtyping import Array, Float
 from ..lie import ad
 from ..model._precompute import LinkageData
 from ._step import exp_and_tangent
-
-_C = math.sqrt(3.0) / 12.0
 
 
 def _ad_apply(a, b):
@@ -337,6 +340,13 @@ def link_base_poses(data: LinkageData, ct: ChainTerms, lay: ChainLayout) -> Arra
     return jnp.stack(bases)
 
 
+def poses(data: LinkageData, q: Float[Array, " n_dof"]) -> Float[Array, "n_points 4 4"]:
+    """World poses of all significant points (no Jacobians traced)."""
+    lay = chain_layout(data)
+    ct = chain_terms(data, steps(data, q), lay)
+    return point_poses(ct, lay, link_base_poses(data, ct, lay))
+
+
 def point_poses(ct: ChainTerms, lay: ChainLayout, bases) -> Array:
     """World poses of all significant points from the links' base poses."""
     rel = _pose(
@@ -371,7 +381,7 @@ def kinematics_and_rates(
 
     The twists ``eta = J qd`` and their velocity-product rates ``Jdot qd`` (the
     acceleration of each point's body frame when qdd = 0) follow the recursion in
-    time (:func:`_division_scan`); only the elementwise step kernel is differentiated.
+    time (:func:`chain_terms`); only the elementwise step kernel is differentiated.
 
     Returns:
         ``(n_points, 4, 4)``, ``(n_points, 6, n_dof)``, ``(n_points, 6)``,

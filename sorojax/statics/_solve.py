@@ -128,20 +128,26 @@ def _value_with_jvp(value, fn, inputs, rule):
     return ident(jax.lax.stop_gradient(value), tuple(inputs), list(consts))
 
 
-def _implicit_solution(fn, x_star, args, linear_solver):
+def _implicit_solution(fn, x_star, args, least_squares: bool):
     """``x_star`` (a root of ``fn(x, args)``) with implicit-function derivatives.
 
     Its derivative with respect to ``args`` (and to any array ``fn`` closes over) is
-    ``dx = -J^-1 (df/dargs dargs)`` with ``J = df/dx`` at ``x_star`` (lineax's
-    transposable linear solve, so reverse mode works). Only a differentiated solve
-    traces the Jacobian.
+    ``dx = -J^-1 (df/dargs dargs)`` with ``J = df/dx`` at ``x_star`` (LU, or the SVD
+    pseudo-inverse for closed loops, whose redundant rows make J singular). Only a
+    differentiated solve forms J. The solve is a dense JAX one, transposable for
+    reverse mode and free of host callbacks (lineax's transposed solve always checks
+    its result with one, which keeps a program out of JAX's persistent compilation
+    cache); at a singular equilibrium (a bifurcation point) the LU derivatives are not
+    finite.
     """
 
     def rule(g, ins, t_ins, c, t_c):
         x, a = ins
         _, rhs = jax.jvp(lambda a_, c_: g((x, a_), c_), (a, c), (t_ins[1], t_c))
-        op = lx.JacobianLinearOperator(lambda x_, _: g((x_, a), c), x)
-        return -lx.linear_solve(op, rhs, linear_solver).value
+        J = jax.jacfwd(lambda x_: g((x_, a), c))(x)
+        if least_squares:
+            return -(jnp.linalg.pinv(J) @ rhs)
+        return -jnp.linalg.solve(J, rhs)
 
     x_star = jax.lax.stop_gradient(x_star)
     return _value_with_jvp(x_star, fn, (x_star, args), rule)
@@ -384,7 +390,7 @@ def _solve_statics(
             RESULTS.nonlinear_divergence,
             result,
         )
-    x_sol = _implicit_solution(fn, x_star, with_load(args, one), linear_solver)
+    x_sol = _implicit_solution(fn, x_star, with_load(args, one), closed)
     q, mu = full(x_sol, 1.0, u)
     full_args = with_load(args, one)
     r = _with_derivative(lambda x_, a_: fn_aux(x_, a_)[1], r_star, (x_sol, full_args))
