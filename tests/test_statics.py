@@ -293,9 +293,9 @@ def test_statics_gradients_match_central_differences():
     # With throw=False the differentiated program holds no host callback (JAX's
     # persistent cache refuses such programs): the implicit-function solve does not
     # throw either.
-    jaxpr = jax.make_jaxpr(
-        jax.grad(lambda x: _tip_y_through_statics(*x, throw=False))
-    )(x0)
+    jaxpr = jax.make_jaxpr(jax.grad(lambda x: _tip_y_through_statics(*x, throw=False)))(
+        x0
+    )
     assert "callback" not in str(jaxpr)
 
 
