@@ -83,4 +83,4 @@ def external_force_recursive(linkage: Linkage, data: LinkageData, t, q) -> Array
     Only for linkages without a custom hook (the hook may need the Jacobians).
     """
     g, records = poses_with_records(data, q)
-    return force_from_wrenches(data, records, external_wrenches(linkage, data, t, g), q)
+    return force_from_wrenches(data, records, external_wrenches(linkage, data, t, g))

@@ -71,7 +71,7 @@ def coriolis_force_from_data(data: LinkageData, q, qd) -> Array:
     eta, etadot_v = jax.jvp(lambda q_: _twists_from_poses(data, q_, qd), (q,), (qd,))
     W = _gyroscopic(_weighted_inertia(data), eta, etadot_v)
     _, records = poses_with_records(data, q)
-    return force_from_wrenches(data, records, W, q)
+    return force_from_wrenches(data, records, W)
 
 
 def coriolis_matrix_from_data(data: LinkageData, q, qd) -> Array:

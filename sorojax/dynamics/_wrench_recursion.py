@@ -45,7 +45,7 @@ def poses_with_records(data: LinkageData, q):
 
 
 def force_from_wrenches(
-    data: LinkageData, records, W: Float[Array, "n_points 6"], q
+    data: LinkageData, records, W: Float[Array, "n_points 6"]
 ) -> Float[Array, " n_dof"]:
     """``sum_p J_p^T W_p`` for body wrenches ``W`` at the significant points.
 
@@ -54,9 +54,7 @@ def force_from_wrenches(
         records: from :func:`poses_with_records` at the same ``q``.
         W: body-frame wrenches (moment, force) at every significant point, already
             multiplied by their quadrature weights where distributed.
-        q: coordinates (unused: the records hold the step twists).
     """
-    del q
     k, ct, lay = records
     n_links = len(data.links)
     rows = np.arange(n_links)

@@ -28,7 +28,7 @@ import numpy as np
 from jax import lax
 from jaxtyping import Array, Float
 
-from ..lie import ad
+from ..lie import ad, hat3
 from ..model._precompute import LinkageData
 from ._step import exp_and_tangent
 
@@ -59,18 +59,8 @@ def _Ad_inv(R, p):
     return jnp.concatenate([top, bottom], axis=-2)
 
 
-def hat3_batched(p):
-    """hat(p) for a stack of 3-vectors ``(..., 3) -> (..., 3, 3)``."""
-    z = jnp.zeros_like(p[..., 0])
-    x, y, w = p[..., 0], p[..., 1], p[..., 2]
-    return jnp.stack(
-        [
-            jnp.stack([z, -w, y], axis=-1),
-            jnp.stack([w, z, -x], axis=-1),
-            jnp.stack([-y, x, z], axis=-1),
-        ],
-        axis=-2,
-    )
+# hat(p) for stacks of 3-vectors: (..., 3) -> (..., 3, 3).
+hat3_batched = jnp.vectorize(hat3, signature="(3)->(3,3)")
 
 
 class Steps(NamedTuple):

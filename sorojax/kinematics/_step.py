@@ -125,17 +125,3 @@ def exp_and_tangent(Omega):
     Z = jnp.zeros((3, 3), dtype=Omega.dtype)
     T = jnp.block([[Tso3, Z], [Q, Tso3]])
     return R, p, T
-
-
-def Ad_inv_Rp(R, p):
-    """Ad(g)^-1 for g = (R, p), angular first: [[R^T, 0], [-R^T hat(p), R^T]]."""
-    Rt = R.T
-    Z = jnp.zeros((3, 3), dtype=R.dtype)
-    return jnp.block([[Rt, Z], [-Rt @ hat3(p), Rt]])
-
-
-def pose(R, p):
-    """4x4 pose from R and p."""
-    top = jnp.concatenate([R, p[:, None]], axis=1)
-    bottom = jnp.zeros((1, 4), dtype=R.dtype).at[0, 3].set(1.0)
-    return jnp.concatenate([top, bottom], axis=0)

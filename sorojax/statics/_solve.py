@@ -99,7 +99,7 @@ def _residual_and_closure(linkage: Linkage, data: LinkageData, q, t, lam, u, mu)
         if mu is not None:
             W = W + Wc
     if kin is None:
-        F = force_from_wrenches(data, records, W, q)
+        F = force_from_wrenches(data, records, W)
     else:
         F = jnp.einsum("pai,pa->i", kin.J, W)
     return data.K @ q - F - Q, e
