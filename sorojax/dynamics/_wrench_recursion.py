@@ -58,14 +58,19 @@ def force_from_wrenches(
     k, ct, lay = records
     n_links = len(data.links)
     rows = np.arange(n_links)
-    m = lay.idx_Rp.shape[1]
     pl, ps = lay.point_link, lay.point_slot
-    # Every point's wrench in its chain start's frame: Ad(G_a)^-T W_a.
+    # Every point's wrench in its chain start's frame, Ad(G_a)^-T W_a, and suffix sums
+    # over the point list: a link's points are contiguous and in slot order, so the
+    # sum over its points from index i on is R[i] - R[end + 1] (gathers only, no
+    # scatter: scatters are slow under vmap).
     Wt = jnp.einsum("pba,pb->pa", ct.Ginv[pl, ps], W)
-    acc = jnp.zeros((n_links, m + 1, 6), W.dtype).at[pl, ps].add(Wt)
+    R = jnp.flip(jnp.cumsum(jnp.flip(Wt, 0), 0), 0)
+    R = jnp.concatenate([R, jnp.zeros_like(R[:1])])
+    first = np.searchsorted(pl, rows)  # first point of each link
+    stop = np.searchsorted(pl, rows, side="right")  # one past its last point
+    own = R[first] - R[stop]
     # Children's totals enter at their parent's tip (carried tip to base).
     tipT = jnp.swapaxes(ct.Ginv[rows, lay.tip_slot], -1, -2)
-    own = acc.sum(axis=1)
     child = [jnp.zeros(6, W.dtype) for _ in range(n_links)]
     for i in range(n_links - 1, -1, -1):
         parent = data.links[i].parent
@@ -73,11 +78,18 @@ def force_from_wrenches(
             total = own[i] + tipT[i] @ child[i]
             child[parent - 1] = child[parent - 1] + total
     at_tip = jnp.einsum("lab,lb->la", tipT, jnp.stack(child))
-    acc = acc.at[rows, lay.tip_slot].add(at_tip)
-    # y_b = Ad(G_b)^T sum_{a > b} (step b joins points b and b + 1).
-    suffix = jnp.flip(jnp.cumsum(jnp.flip(acc, 1), 1), 1)[:, 1:]
-    AdG = _Ad(ct.RG[:, :-1], ct.pG[:, :-1])
-    y = jnp.einsum("lsba,lsb->lsa", AdG, suffix)
-    y = y[lay.step_link, lay.step_slot]  # (n_steps, 6), real steps only
+    # Step b of a link joins its slots b and b + 1: y_b = Ad(G_b)^T (sum of the
+    # link's points at slots > b, and the children's wrench at its tip).
+    sl, ss = lay.step_link, lay.step_slot
+    after = np.array(
+        [
+            first[lk] + np.searchsorted(ps[first[lk] : stop[lk]], b + 1)
+            for lk, b in zip(sl, ss, strict=True)
+        ],
+        dtype=int,
+    ).reshape(-1)
+    suffix = R[after] - R[stop[sl]] + at_tip[sl]
+    AdG = _Ad(ct.RG[sl, ss], ct.pG[sl, ss])
+    y = jnp.einsum("sba,sb->sa", AdG, suffix)
     z = jnp.einsum("sba,sb->sa", k.T, y)
     return jnp.einsum("sai,sa->i", step_jacobians(data, k, None), z)
