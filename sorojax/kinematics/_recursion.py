@@ -28,7 +28,7 @@ import numpy as np
 from jax import lax
 from jaxtyping import Array, Float
 
-from ..lie import ad, hat3
+from ..lie import Ad, Ad_inv, ad
 from ..model._precompute import LinkageData
 from ._step import exp_and_tangent
 
@@ -43,24 +43,13 @@ def _ad_apply(a, b):
 
 
 def _Ad(R, p):
-    """Ad(g) for stacks of (R, p), angular first: [[R, 0], [hat(p) R, R]]."""
-    Z = jnp.zeros_like(R)
-    top = jnp.concatenate([R, Z], axis=-1)
-    bottom = jnp.concatenate([hat3_batched(p) @ R, R], axis=-1)
-    return jnp.concatenate([top, bottom], axis=-2)
+    """:func:`sorojax.lie.Ad` of stacks of poses given as ``(R, p)``."""
+    return jnp.vectorize(Ad, signature="(4,4)->(6,6)")(_pose(R, p))
 
 
 def _Ad_inv(R, p):
-    """Ad(g)^-1 for stacks of (R, p): [[R^T, 0], [-R^T hat(p), R^T]]."""
-    Rt = jnp.swapaxes(R, -1, -2)
-    Z = jnp.zeros_like(R)
-    top = jnp.concatenate([Rt, Z], axis=-1)
-    bottom = jnp.concatenate([-Rt @ hat3_batched(p), Rt], axis=-1)
-    return jnp.concatenate([top, bottom], axis=-2)
-
-
-# hat(p) for stacks of 3-vectors: (..., 3) -> (..., 3, 3).
-hat3_batched = jnp.vectorize(hat3, signature="(3)->(3,3)")
+    """:func:`sorojax.lie.Ad_inv` of stacks of poses given as ``(R, p)``."""
+    return jnp.vectorize(Ad_inv, signature="(4,4)->(6,6)")(_pose(R, p))
 
 
 class Steps(NamedTuple):
@@ -396,7 +385,6 @@ def _tree_pass(data: LinkageData, q, V, qd):
     k = steps(data, q, qd)
     ct = chain_terms(data, k, lay, step_jacobians(data, k, V))
     rows = np.arange(n_links)
-    tip_g = _pose(ct.RG[rows, lay.tip_slot], ct.pG[rows, lay.tip_slot])
     tip_Gi = ct.Ginv[rows, lay.tip_slot]
     rates = qd is not None
     # Base state of each link (its parent's tip): pose and [J | eta | etadot].
@@ -411,22 +399,18 @@ def _tree_pass(data: LinkageData, q, V, qd):
             axis=-1,
         )
     width = cols + (2 if rates else 0)
-    eye4 = jnp.eye(4, dtype=dtype)
     zero = jnp.zeros((6, width), dtype=dtype)
-    base_g, base_X, tips = [], [], []
+    base_X, tips = [], []
     for i, ld in enumerate(data.links):
         if ld.parent == 0:
-            g0, X0 = eye4, zero
-            g, X = tip_g[i], tip_rel[i]
+            X0, X = zero, tip_rel[i]
         else:
-            g0, X0 = tips[ld.parent - 1]
-            g = g0 @ tip_g[i]
+            X0 = tips[ld.parent - 1]
             X = _compose(tip_Gi[i], X0, tip_rel[i], cols, rates)
-        base_g.append(g0)
         base_X.append(X0)
-        tips.append((g, X))
+        tips.append(X)
+    g_pts = point_poses(ct, lay, link_base_poses(data, ct, lay))
     pl, ps = lay.point_link, lay.point_slot
-    g_pts = jnp.stack(base_g)[pl] @ _pose(ct.RG[pl, ps], ct.pG[pl, ps])
     rel = ct.relJ[pl, ps]
     if rates:
         rel = jnp.concatenate(
