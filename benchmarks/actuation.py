@@ -67,6 +67,12 @@ def timed(f, *args, repeats, warmup=True):
     return statistics.median(ts), min(ts)
 
 
+def jit(f):
+    """``jax.jit`` with sorojax's XLA options (what its own entry points compile
+    with; JAX takes them on top-level jits only)."""
+    return jax.jit(f, compiler_options=sj.compiler_options())
+
+
 def compile_time(jitted, *args):
     """(compiled executable, seconds to trace + lower + compile)."""
     t0 = time.perf_counter()
@@ -92,7 +98,7 @@ def bench_cables(n_batch, n_loop, repeats, batch_repeats, chunk):
         "n_batch": n_batch,
         "tension_range_N": [0.0, T_MAX],
     }
-    single = jax.jit(solve_one)
+    single = jit(solve_one)
     compiled, tc = compile_time(single, tensions[0])
     med, best = timed(compiled, tensions[0], repeats=repeats)
     idx = np.linspace(0, n_batch - 1, n_loop).astype(int)
@@ -126,12 +132,12 @@ def bench_cables(n_batch, n_loop, repeats, batch_repeats, chunk):
         "extrapolated_total_s": per * n_batch,
         "newton_iterations_min_max": [min(steps), max(steps)],
     }
-    variants = [("vmap", jax.jit(jax.vmap(solve_one)))]
+    variants = [("vmap", jit(jax.vmap(solve_one)))]
     if chunk:
         variants.append(
             (
                 f"lax.map(batch_size={chunk})",
-                jax.jit(lambda T: jax.lax.map(solve_one, T, batch_size=chunk)),
+                jit(lambda T: jax.lax.map(solve_one, T, batch_size=chunk)),
             )
         )
     for name, fn in variants:
@@ -187,7 +193,7 @@ def bench_hybrid(repeats, dyn_repeats):
             sol.efforts,
         )
 
-    compiled, tc = compile_time(jax.jit(statics), q_ref, u_st)
+    compiled, tc = compile_time(jit(statics), q_ref, u_st)
     q, res, steps, result, cerr, eff = jax.block_until_ready(compiled(q_ref, u_st))
     med, best = timed(compiled, q_ref, u_st, repeats=repeats)
     out = {
@@ -225,7 +231,7 @@ def bench_hybrid(repeats, dyn_repeats):
         e = jax.vmap(lambda q_: sj.closure_errors(linkage, q_))(tr.q)
         return tr, jnp.max(jnp.abs(e))
 
-    compiled_d, tcd = compile_time(jax.jit(dynamics))
+    compiled_d, tcd = compile_time(jit(dynamics))
     tr, drift = jax.block_until_ready(compiled_d())
     medd, bestd = timed(compiled_d, repeats=dyn_repeats, warmup=False)
     out["dynamics"] = {
@@ -399,6 +405,7 @@ def main(argv=None):
             "repeats": repeats,
             "batch_repeats": batch_repeats,
             "dynamics_repeats": dyn_repeats,
+            "xla_compiler_options": sj.compiler_options(),
         },
         **results,
         "total_benchmark_s": total,

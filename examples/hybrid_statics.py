@@ -58,7 +58,10 @@ def main(argv=None):
 
     k0 = linkage.links[0].joint.stiffness
     E0 = linkage.links[1].material.E
-    dk, dE = jax.grad(tip_height)((k0, E0))
+    # our own top-level jit, with sorojax's XLA options (they apply to top-level
+    # programs only; a bare jax.grad would compile with XLA's defaults)
+    grad = jax.jit(jax.grad(tip_height), compiler_options=sj.compiler_options())
+    dk, dE = grad((k0, E0))
     print(f"d(tip y)/d(joint stiffness) = {float(dk.squeeze()):.4e} m per N m/rad")
     print(f"d(tip y)/d(E)               = {float(dE):.4e} m per Pa")
 

@@ -5,6 +5,7 @@ Conventions: SI units; 6-vectors angular first ``(wx, wy, wz, vx, vy, vz)``; wre
 """
 
 from ._cache import enable_compilation_cache as enable_compilation_cache
+from ._jit import compiler_options as compiler_options
 from ._results import RESULTS as RESULTS
 from ._results import StaticsSolution as StaticsSolution
 from .dynamics import actuation_matrix as actuation_matrix

@@ -14,11 +14,11 @@ constant offset in an inextensible rod ``dl/dk_z = -y``: the tension bends the r
 toward the cable with moment ``T y``.
 """
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
+from .._jit import jit
 from ..kinematics._api import Kinematics, _as_q
 from ..model._actuation import Cable, CableSpan, JointActuator
 from ..model._linkage import Linkage
@@ -301,14 +301,14 @@ def actuation_matrix_from_data(linkage: Linkage, data: LinkageData, q) -> Array:
     return jnp.concatenate(cols, axis=1)
 
 
-@eqx.filter_jit
+@jit
 def cable_lengths(linkage: Linkage, q: ArrayLike) -> Float[Array, " n_cables"]:
     """Lengths [m] of the linkage's cables at ``q``, in actuator order."""
     q = _as_q(linkage, q)
     return cable_lengths_from_data(linkage, precompute(linkage), q)
 
 
-@eqx.filter_jit
+@jit
 def actuation_matrix(linkage: Linkage, q: ArrayLike) -> Float[Array, "n_dof n_inputs"]:
     """The manual's actuation matrix ``B(q)``: generalised force = ``B`` times efforts.
 

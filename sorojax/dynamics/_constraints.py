@@ -20,12 +20,12 @@ twists and their rates that the mass matrix needs anyway
 
 import functools
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
+from .._jit import jit
 from ..kinematics._api import _as_q
 from ..lie import Ad_inv, ad, hat, log_se3
 from ..model._joint import perpendicular_pair
@@ -206,14 +206,14 @@ def numerical_rank(A, rtol: float = 1e-9) -> Array:
     return jnp.sum(s > rtol * jnp.maximum(s[0], 1e-300))
 
 
-@eqx.filter_jit
+@jit
 def closure_errors(linkage: Linkage, q: ArrayLike) -> Float[Array, " n_constraints"]:
     """Closed-loop constraint errors e(q) (rad and m), joint by joint."""
     q = _as_q(linkage, q)
     return closure_errors_from_data(linkage, precompute(linkage), q)
 
 
-@eqx.filter_jit
+@jit
 def constraint_jacobian(
     linkage: Linkage, q: ArrayLike
 ) -> Float[Array, "n_constraints n_dof"]:

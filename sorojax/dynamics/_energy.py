@@ -12,10 +12,10 @@ invariant of the semi-discrete equations and only the time integrator makes it d
 Point wrenches and the custom hook are not included (they need not be conservative).
 """
 
-import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
+from .._jit import jit
 from ..kinematics._api import _as_q
 from ..kinematics._recursion import poses_and_jacobians
 from ..model._linkage import Linkage
@@ -39,26 +39,26 @@ def _kinetic(data: LinkageData, q, qd) -> Array:
     return 0.5 * qd @ (M @ qd)
 
 
-@eqx.filter_jit
+@jit
 def kinetic_energy(linkage: Linkage, q: ArrayLike, qd: ArrayLike) -> Float[Array, ""]:
     """Kinetic energy ``1/2 qd^T M(q) qd`` [J]."""
     q, qd = _as_q(linkage, q), _as_q(linkage, qd, "qd")
     return _kinetic(precompute(linkage), q, qd)
 
 
-@eqx.filter_jit
+@jit
 def gravitational_energy(linkage: Linkage, q: ArrayLike) -> Float[Array, ""]:
     """Gravitational potential energy [J], zero with every mass at the world origin."""
     return _gravitational(precompute(linkage), _as_q(linkage, q))
 
 
-@eqx.filter_jit
+@jit
 def elastic_energy(linkage: Linkage, q: ArrayLike) -> Float[Array, ""]:
     """Elastic energy ``1/2 q^T K q`` of the rods and joint springs [J]."""
     return _elastic(precompute(linkage), _as_q(linkage, q))
 
 
-@eqx.filter_jit
+@jit
 def total_energy(linkage: Linkage, q: ArrayLike, qd: ArrayLike) -> Float[Array, ""]:
     """Kinetic + gravitational + elastic energy [J]."""
     q, qd = _as_q(linkage, q), _as_q(linkage, qd, "qd")

@@ -15,6 +15,7 @@ import jax.numpy as jnp
 from jax.scipy.linalg import cho_factor, cho_solve
 from jaxtyping import Array, ArrayLike, Float
 
+from .._jit import jit
 from ..kinematics._api import Kinematics, _as_q
 from ..kinematics._recursion import (
     jacobians_dot,
@@ -270,7 +271,7 @@ def consistent_velocities(
     return qd + Minv_Gt @ mu
 
 
-@eqx.filter_jit
+@jit
 def forward_dynamics(
     linkage: Linkage,
     q: ArrayLike,
@@ -302,7 +303,7 @@ def forward_dynamics(
     return st.qdd
 
 
-@eqx.filter_jit
+@jit
 def equations_of_motion(
     linkage: Linkage,
     q: ArrayLike,

@@ -1,9 +1,9 @@
 """Public generalised-force queries (the manual's GeneralizedExternalForce)."""
 
-import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
+from .._jit import jit
 from ..kinematics._api import Kinematics, _as_q
 from ..kinematics._recursion import jacobians_dot, poses_and_jacobians, strains
 from ..model._linkage import Linkage
@@ -18,7 +18,7 @@ def kinematics_from_data(data: LinkageData, q, qd, *, need_jdot: bool) -> Kinema
     return Kinematics(g=g, J=J, xi=strains(data, q), eta=J @ qd, Jdot=Jdot)
 
 
-@eqx.filter_jit
+@jit
 def generalized_external_force(
     linkage: Linkage, q: ArrayLike, qd: ArrayLike | None = None, t: ArrayLike = 0.0
 ) -> Float[Array, " n_dof"]:

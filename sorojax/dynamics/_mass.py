@@ -22,11 +22,11 @@ Two ways to evaluate the velocity-product force C qd:
   generalised force from the backward wrench recursion. Cost O(n_points n_dof).
 """
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
+from .._jit import jit
 from ..kinematics._api import _as_q
 from ..kinematics._recursion import jacobians_dot, poses_and_jacobians
 from ..lie import ad
@@ -87,7 +87,7 @@ def coriolis_matrix_from_data(data: LinkageData, q, qd) -> Array:
     return jnp.einsum("pai,paj->ij", J, inner)
 
 
-@eqx.filter_jit
+@jit
 def mass_matrix(linkage: Linkage, q: ArrayLike) -> Float[Array, "n_dof n_dof"]:
     """Generalised mass matrix M(q) (the manual's GeneralizedMassMatrix).
 
@@ -98,7 +98,7 @@ def mass_matrix(linkage: Linkage, q: ArrayLike) -> Float[Array, "n_dof n_dof"]:
     return _mass_from_J(data, poses_and_jacobians(data, q)[1])
 
 
-@eqx.filter_jit
+@jit
 def coriolis_matrix(
     linkage: Linkage, q: ArrayLike, qd: ArrayLike
 ) -> Float[Array, "n_dof n_dof"]:
@@ -111,7 +111,7 @@ def coriolis_matrix(
     return coriolis_matrix_from_data(precompute(linkage), q, qd)
 
 
-@eqx.filter_jit
+@jit
 def coriolis_force(
     linkage: Linkage, q: ArrayLike, qd: ArrayLike
 ) -> Float[Array, " n_dof"]:

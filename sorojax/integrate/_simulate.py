@@ -26,6 +26,7 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, ArrayLike
 
+from .._jit import jit
 from .._results import RESULTS
 from ..dynamics._eom import (
     GeneralizedForce,
@@ -98,7 +99,7 @@ AUTO_VERY_STIFF_STEPS = 20_000
 AUTO_MIN_RTOL = 1e-5
 
 
-@eqx.filter_jit
+@jit
 def _linear_terms(linkage: Linkage, q0):
     from ..dynamics._mass import _mass_from_J
     from ..kinematics._recursion import poses_and_jacobians
@@ -212,21 +213,34 @@ def _input_function(u_fn, u_const) -> InputFunction:
     return lambda t: jnp.asarray(u_fn(t), dtype=u_const.dtype).reshape(u_const.shape)
 
 
+@eqx.filter_jit
+def _rates(linkage: Linkage, data, t, y, u_fn, u_const, generalized_force):
+    """``(qd, qdd)``, M and (with inputs) the constrained state at ``(t, y)``.
+
+    Jitted so that the right-hand side is traced once per program: diffrax calls the
+    vector field from several places (term check, first stage, the stage loop), and
+    the efforts at the save points call it again; each call with the same shapes
+    reuses the first trace (and its lowering). XLA inlines the calls.
+    """
+    n = y.shape[0] // 2
+    q, qd = y[:n], y[n:]
+    if not _needs_inputs(linkage):
+        M, f = mass_and_force(linkage, data, t, q, qd, generalized_force)
+        return jnp.concatenate([qd, spd_solve(M, f)]), M, None
+    st = constrained_dynamics(
+        linkage, data, t, q, qd, _input_function(u_fn, u_const), generalized_force
+    )
+    return jnp.concatenate([st.qd, st.qdd]), st.M, st
+
+
 def _vector_field(linkage: Linkage, generalized_force, u_fn) -> MechanicalTerm:
     """The dynamics as a diffrax term: ``(qd, qdd)`` and the stiff part (M, K, D)."""
 
     def field(t, y, args):
         data, u_const = args
-        n = y.shape[0] // 2
-        q, qd = y[:n], y[n:]
-        if not _needs_inputs(linkage):
-            M, f = mass_and_force(linkage, data, t, q, qd, generalized_force)
-            ydot = jnp.concatenate([qd, spd_solve(M, f)])
-            return ydot, (M, data.K, data.D)
-        st = constrained_dynamics(
-            linkage, data, t, q, qd, _input_function(u_fn, u_const), generalized_force
-        )
-        return jnp.concatenate([st.qd, st.qdd]), (st.M, data.K, data.D)
+        t = jax.lax.convert_element_type(t, y.dtype)  # strong type, as at the saves
+        ydot, M, _ = _rates(linkage, data, t, y, u_fn, u_const, generalized_force)
+        return ydot, (M, data.K, data.D)
 
     return MechanicalTerm(field)
 
@@ -261,7 +275,7 @@ def _errors_as_nans():
         _errors.EQX_ON_ERROR = old
 
 
-@eqx.filter_jit
+@jit
 def _simulate(
     linkage: Linkage,
     y0: Array,
@@ -304,13 +318,12 @@ def _simulate(
     assert sol.ys is not None and sol.ts is not None and sol.stats is not None
     extra = {}
     if _needs_inputs(linkage):
-        fn = _input_function(u_fn, u_const)
         # lax.map: one copy of the right-hand side in the program, as in the loop
         # (a vmapped copy compiles ~20% slower; the save points are few).
         st = jax.lax.map(
-            lambda ty: constrained_dynamics(
-                linkage, data, ty[0], ty[1][:n], ty[1][n:], fn, generalized_force
-            ),
+            lambda ty: _rates(
+                linkage, data, ty[0], ty[1], u_fn, u_const, generalized_force
+            )[2],
             (sol.ts, sol.ys),
         )
         extra = {"u": st.u, "efforts": st.efforts, "lam": st.lam}

@@ -10,6 +10,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
+from .._jit import jit
 from ..model._linkage import Linkage
 from ..model._precompute import precompute
 from ._recursion import jacobians_dot, poses, poses_and_jacobians, strains
@@ -45,7 +46,7 @@ def _as_q(linkage: Linkage, q, name="q") -> Array:
     return q
 
 
-@eqx.filter_jit
+@jit
 def forward_kinematics(linkage: Linkage, q: ArrayLike) -> Float[Array, "n_points 4 4"]:
     """Poses of all significant points (the manual's ``FwdKinematics``).
 
@@ -63,14 +64,14 @@ def forward_kinematics(linkage: Linkage, q: ArrayLike) -> Float[Array, "n_points
     return poses(precompute(linkage), q)
 
 
-@eqx.filter_jit
+@jit
 def jacobians(linkage: Linkage, q: ArrayLike) -> Float[Array, "n_points 6 n_dof"]:
     """Body Jacobians of all significant points (the manual's ``Jacobian``)."""
     q = _as_q(linkage, q)
     return poses_and_jacobians(precompute(linkage), q)[1]
 
 
-@eqx.filter_jit
+@jit
 def jacobians_time_derivative(
     linkage: Linkage, q: ArrayLike, qd: ArrayLike
 ) -> Float[Array, "n_points 6 n_dof"]:
@@ -80,14 +81,14 @@ def jacobians_time_derivative(
     return jacobians_dot(precompute(linkage), q, qd)
 
 
-@eqx.filter_jit
+@jit
 def screw_strains(linkage: Linkage, q: ArrayLike) -> Float[Array, "n_points 6"]:
     """Screw strains at all significant points (the manual's ``ScrewStrain``)."""
     q = _as_q(linkage, q)
     return strains(precompute(linkage), q)
 
 
-@eqx.filter_jit
+@jit
 def screw_velocities(
     linkage: Linkage, q: ArrayLike, qd: ArrayLike
 ) -> Float[Array, "n_points 6"]:
@@ -98,7 +99,7 @@ def screw_velocities(
     return J @ qd
 
 
-@eqx.filter_jit
+@jit
 def kinematics(
     linkage: Linkage, q: ArrayLike, qd: ArrayLike | None = None
 ) -> Kinematics:

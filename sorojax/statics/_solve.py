@@ -28,6 +28,7 @@ import optimistix as optx
 from jax import lax
 from jaxtyping import Array, ArrayLike
 
+from .._jit import jit
 from .._results import RESULTS, StaticsSolution
 from ..dynamics._actuation import actuation_loads
 from ..dynamics._constraints import (
@@ -194,6 +195,8 @@ def _newton(fn_aux, x0, args, *, n_inc, linear_solver, max_steps, rtol, atol):
     dtype = x0.dtype
     one = jnp.ones((), dtype)
 
+    # Jitted: the shape probe below and the loop body share one trace.
+    @jax.jit
     def evaluate(x, lam):
         return _jacobian_and_values(lambda x_: fn_aux(x_, lam), x)
 
@@ -260,7 +263,7 @@ def _newton(fn_aux, x0, args, *, n_inc, linear_solver, max_steps, rtol, atol):
     return x, f, aux, J, total, status
 
 
-@eqx.filter_jit
+@jit
 def _solve_statics(
     linkage: Linkage,
     q0: ArrayLike | None = None,

@@ -13,11 +13,11 @@ import pathlib
 import warnings
 from collections.abc import Sequence
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._jit import jit
 from ..io._files import as_path, check_target, writing
 
 VIDEO_SUFFIXES = (".mp4", ".gif")
@@ -347,13 +347,13 @@ def plot_time_series(
     return fig
 
 
-@eqx.filter_jit
+@jit
 def _tip_positions(linkage, traj):
     """``(n_save, 3)`` world position of the last link's tip [m]."""
     return traj.tip_positions(linkage)
 
 
-@eqx.filter_jit
+@jit
 def _energies(linkage, q, qd):
     """``(n_save, 4)`` kinetic, gravitational, elastic and total energy [J]."""
     from ..dynamics import elastic_energy, gravitational_energy, kinetic_energy

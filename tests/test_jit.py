@@ -1,0 +1,130 @@
+"""sorojax's compiled entry points: XLA options and one trace of the right-hand side.
+
+sorojax compiles its own programs with XLA options of its own
+(``sorojax.compiler_options()``: the classic CPU emitters, which compile its many
+small kernels faster). They must not change the arithmetic beyond rounding, must
+fall back to XLA's defaults when turned off or unknown, and the dynamics' right-hand
+side must be traced once per program however often diffrax calls it.
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import sorojax as sj
+import sorojax._jit as sjit
+import sorojax.integrate._simulate as simulate_module
+
+
+@pytest.fixture(scope="module")
+def arm():
+    """A rigid bar on a prescribed revolute joint under gravity, and a soft rod."""
+    bar = sj.RigidLink(sj.Joint("R", axis=(0, 0, 1.0)), length=0.3, mass=0.2)
+    rod = sj.SoftLink(
+        [
+            sj.Division(
+                0.4, sj.CircularSection(0.01), sj.LegendreBasis((0, 1, 1, 0, 0, 0), 1)
+            )
+        ],
+        sj.Material(1e6, 0.5),
+    )
+    return sj.Linkage(
+        [bar, rod],
+        gravity=(0, -9.81, 0),
+        actuators=[sj.JointActuator(1, prescribed=True)],
+    )
+
+
+def test_options_are_a_fresh_dict_and_turn_off(monkeypatch):
+    """Callers may change the dict they get; ``SOROJAX_XLA_OPTIONS=off`` gives {}."""
+    opts = sj.compiler_options()
+    assert opts in ({}, sjit.CPU_OPTIONS)  # {} only where this XLA lacks the option
+    opts["something"] = 1
+    assert "something" not in sj.compiler_options()
+    sjit._probed_options.cache_clear()
+    monkeypatch.setenv("SOROJAX_XLA_OPTIONS", "off")
+    try:
+        assert sj.compiler_options() == {}
+    finally:
+        sjit._probed_options.cache_clear()
+
+
+def test_this_xla_knows_the_options():
+    """jaxlib here is the one CI installs: the options must be in effect on CPU
+    (a silent fall back to the defaults would lose the compile-time gain)."""
+    if jax.default_backend() != "cpu":
+        pytest.skip("CPU options")
+    assert sj.compiler_options() == sjit.CPU_OPTIONS
+
+
+def test_jit_uses_the_options_at_top_level_only(monkeypatch):
+    """``sorojax._jit.jit`` compiles top-level calls with the probed options (built
+    once, on the first call) and calls inside another trace (jit, grad, vmap) with a
+    plain filter_jit: JAX rejects compiler options on nested jits."""
+    seen = []
+    real = sjit.eqx.filter_jit
+
+    def spy(fun, **kw):
+        seen.append(kw)
+        return real(fun, **kw)
+
+    monkeypatch.setattr(sjit.eqx, "filter_jit", spy)
+    f = sjit.jit(lambda x: 2.0 * x * x)
+    assert seen == [{}]  # the plain one; nothing probed at decoration time
+    assert float(f(jnp.asarray(1.5))) == 4.5
+    assert float(f(jnp.asarray(2.5))) == 12.5
+    opts = sj.compiler_options()
+    assert seen == ([{}, {"compiler_options": opts}] if opts else [{}])
+    assert float(jax.jit(f)(jnp.asarray(1.5))) == 4.5
+    assert float(jax.grad(f)(jnp.asarray(1.5))) == 6.0
+    np.testing.assert_array_equal(jax.vmap(f)(jnp.arange(3.0)), [0.0, 2.0, 8.0])
+    assert len(seen) == (2 if opts else 1)
+
+
+def test_results_agree_with_xla_default_options(arm):
+    """Mass matrix, generalised force and statics compiled with sorojax's options
+    equal the same programs under a plain ``jax.jit`` (XLA defaults) to rounding:
+    1e-12 relative (the options change code generation, not the arithmetic)."""
+    q = jnp.linspace(-0.3, 0.4, arm.n_dof)
+    qd = jnp.linspace(0.2, -0.1, arm.n_dof)
+
+    def terms(q, qd):
+        return sj.mass_matrix(arm, q), sj.equations_of_motion(arm, q, qd)[1]
+
+    M0, f0 = terms(q, qd)
+    M1, f1 = jax.jit(terms)(q, qd)
+    np.testing.assert_allclose(M0, M1, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(f0, f1, rtol=1e-12, atol=1e-12)
+
+    def statics(th):
+        sol = sj.solve_statics(arm, u=jnp.stack([th]))
+        return sol.q, sol.efforts
+
+    qs0, e0 = statics(jnp.asarray(0.5))
+    qs1, e1 = jax.jit(statics)(jnp.asarray(0.5))
+    np.testing.assert_allclose(qs0, qs1, rtol=1e-10, atol=1e-13)
+    np.testing.assert_allclose(e0, e1, rtol=1e-10, atol=1e-13)
+
+
+def test_dynamics_right_hand_side_is_traced_once(arm, monkeypatch):
+    """diffrax evaluates the vector field at several places (term check, first
+    stage, stage loop) and the efforts at the save points evaluate it again; sorojax
+    routes them all through one jitted function, so the (slow, Python) trace of the
+    constrained dynamics happens once per program."""
+    calls = []
+    real = simulate_module.constrained_dynamics
+
+    def counting(*args, **kw):
+        calls.append(1)
+        return real(*args, **kw)
+
+    monkeypatch.setattr(simulate_module, "constrained_dynamics", counting)
+    u = lambda t: jnp.stack([0.3 * jnp.sin(2.0 * t)])  # noqa: E731
+    jax.eval_shape(
+        lambda: sj.simulate(arm, 0.1, u=u, solver="tsit5", n_save=3, throw=False).q
+    )
+    # diffrax's term check (an eval_shape with its own abstract arguments) traces
+    # it once more; before sharing the trace it was 5 (check, first stage, stage
+    # loop twice, save points)
+    assert 1 <= len(calls) <= 2, f"constrained dynamics traced {len(calls)} times"
