@@ -74,13 +74,18 @@ def jit(fun: Callable) -> Callable:
     plain = eqx.filter_jit(fun)
     tuned: list = []
 
-    @functools.wraps(fun)
-    def call(*args, **kwargs):
+    def pick():
         if not _top_level():
-            return plain(*args, **kwargs)
+            return plain
         if not tuned:
             opts = _probed_options()
             tuned.append(eqx.filter_jit(fun, compiler_options=opts) if opts else plain)
-        return tuned[0](*args, **kwargs)
+        return tuned[0]
 
+    @functools.wraps(fun)
+    def call(*args, **kwargs):
+        return pick()(*args, **kwargs)
+
+    # ahead-of-time compilation, as on a filter_jit: f.lower(*args).compile()
+    call.lower = lambda *args, **kwargs: pick().lower(*args, **kwargs)
     return call

@@ -80,6 +80,9 @@ def test_jit_uses_the_options_at_top_level_only(monkeypatch):
     assert float(jax.grad(f)(jnp.asarray(1.5))) == 6.0
     np.testing.assert_array_equal(jax.vmap(f)(jnp.arange(3.0)), [0.0, 2.0, 8.0])
     assert len(seen) == (2 if opts else 1)
+    # ahead-of-time compilation, as on a filter_jit (the benchmarks time compiles so)
+    compiled = f.lower(jnp.asarray(1.0)).compile()
+    assert float(compiled(jnp.asarray(3.0))) == 18.0
 
 
 def test_results_agree_with_xla_default_options(arm):
