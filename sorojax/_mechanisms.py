@@ -197,7 +197,7 @@ def four_bar(gravity: bool = True, prescribed: bool = True) -> Linkage:
     return Linkage(
         [_bar(a, rz, "tab:red"), _bar(b, rz, "tab:blue"), _bar(c, rz, "tab:green")],
         parents=(0, 1, 0),
-        placements=jnp.stack([jnp.eye(4), jnp.eye(4), translation(d)]),
+        placements=jnp.asarray(np.stack([np.eye(4), np.eye(4), translation(d)])),
         gravity=(0.0, -9.81, 0.0) if gravity else (0.0, 0.0, 0.0),
         actuators=[JointActuator(1, prescribed=True)] if prescribed else (),
         closed_loops=[ClosedLoopJoint(Joint("R", axis=Z_AXIS), 2, 3)],

@@ -59,7 +59,7 @@ def demo_linkage() -> Linkage:
         joint=Joint("N"),
         color="tab:orange",
     )
-    placements = jnp.stack([jnp.eye(4), jnp.asarray(rotation_y(math.radians(15)))])
+    placements = jnp.asarray(np.stack([np.eye(4), rotation_y(math.radians(15))]))
     return Linkage(
         [link1, link2],
         parents=(0, 1),

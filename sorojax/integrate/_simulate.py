@@ -416,16 +416,12 @@ def simulate(
     dtype = q0.dtype
     t0_, t1_ = jnp.asarray(t0, dtype=dtype), jnp.asarray(t1, dtype=dtype)
     u_fn, u_const = _split_inputs(linkage, u, dtype)
-    qi, _ = linkage.prescribed
-    if len(qi):  # start the prescribed coordinates on their motion
-        qp, qdp, _ = prescribed_motion(linkage, _input_function(u_fn, u_const), t0_)
-        q0, qd0 = q0.at[qi].set(qp), qd0.at[qi].set(qdp)
-    y0 = jnp.concatenate([q0, qd0.astype(q0.dtype)])
-    if ts is None:
-        if n_save < 1:
-            raise ValueError(f"n_save = {n_save}; give at least 1 save time.")
-        ts_ = jnp.linspace(t0_, t1_, n_save)
-    else:
+    if ts is None and n_save < 1:
+        raise ValueError(f"n_save = {n_save}; give at least 1 save time.")
+    q0, y0, ts_ = _initial_state(
+        linkage, q0, qd0, t0_, t1_, u_fn, u_const, n_save if ts is None else None
+    )
+    if ts is not None:
         ts_ = jnp.asarray(ts, dtype=dtype).reshape(-1)
         if not isinstance(ts_, jax.core.Tracer) and not isinstance(
             t1_, jax.core.Tracer
@@ -491,6 +487,24 @@ def simulate(
             "trajectory up to the failure."
         )
     return traj
+
+
+@jit
+def _initial_state(linkage: Linkage, q0, qd0, t0, t1, u_fn, u_const, n_save):
+    """``(q0, y0, ts)`` with the prescribed coordinates started on their motion.
+
+    The prescribed coordinates take u(t0) and its derivative; ``ts`` is ``n_save``
+    evenly spaced save times (None when ts is given).
+
+    One compiled program instead of a dozen single operations run one by one (each
+    compiled on first use).
+    """
+    qi, _ = linkage.prescribed
+    if len(qi):
+        qp, qdp, _ = prescribed_motion(linkage, _input_function(u_fn, u_const), t0)
+        q0, qd0 = q0.at[qi].set(qp), qd0.at[qi].set(qdp)
+    y0 = jnp.concatenate([q0, qd0.astype(q0.dtype)])
+    return q0, y0, None if n_save is None else jnp.linspace(t0, t1, n_save)
 
 
 def _split_inputs(linkage: Linkage, u, dtype):

@@ -63,8 +63,9 @@ class ClosedLoopJoint(eqx.Module):
         self.joint = joint
         self.link_A = int(link_A)
         self.link_B = int(link_B)
-        self.g_A = jnp.eye(4) if g_A is None else jnp.asarray(g_A, dtype=float)
-        self.g_B = jnp.eye(4) if g_B is None else jnp.asarray(g_B, dtype=float)
+        eye = np.eye(4)  # a transfer, not an operation to compile
+        self.g_A = jnp.asarray(eye if g_A is None else g_A, dtype=float)
+        self.g_B = jnp.asarray(eye if g_B is None else g_B, dtype=float)
         self.basis_p = tuple(map(tuple, _complement(joint).tolist()))
 
     @property

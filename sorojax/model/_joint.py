@@ -14,6 +14,7 @@ its pose is ``exp(Phi_j q_j)`` (DESIGN.md section 3). Axes are chosen by the use
 """
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
@@ -149,15 +150,17 @@ class Joint(eqx.Module):
 
 
 def _as_matrix(field: str, value, n: int) -> Array:
-    arr = jnp.asarray(value, dtype=float)
+    # numpy for concrete values: a transfer at the end, no operation to compile
+    xp = jnp if isinstance(value, jax.core.Tracer) else np
+    arr = xp.asarray(value, dtype=float)
     if arr.ndim == 0:
         check_positive(field, value, allow_zero=True)
-        return arr * jnp.eye(n)
+        return jnp.asarray(arr * xp.eye(n))
     if arr.shape == (n,):
         check_positive(field, value, allow_zero=True)
-        return jnp.diag(arr)
+        return jnp.asarray(xp.diag(arr))
     if arr.shape == (n, n):
-        return arr
+        return jnp.asarray(arr)
     raise ValueError(
         f"{field} has shape {arr.shape}: give a scalar, a ({n},) vector or an "
         f"({n}, {n}) matrix for this {n}-DoF joint."

@@ -29,13 +29,17 @@ XI_STRAIGHT = (0.0, 0.0, 0.0, 1.0, 0.0, 0.0)
 
 def _pose(field, g):
     if g is None:
-        return jnp.eye(4)
+        return jnp.asarray(np.eye(4))  # a transfer, not an operation to compile
     check_se3(field, g)
     return jnp.asarray(g, dtype=float)
 
 
 def translation(x: float = 0.0, y: float = 0.0, z: float = 0.0) -> Array:
     """Pure translation as a 4x4 pose."""
+    if all(isinstance(v, int | float) for v in (x, y, z)):  # no operation to compile
+        g = np.eye(4)
+        g[:3, 3] = (x, y, z)
+        return jnp.asarray(g)
     g = jnp.eye(4)
     return g.at[:3, 3].set(
         jnp.stack(jnp.broadcast_arrays(*map(jnp.asarray, (x, y, z))))

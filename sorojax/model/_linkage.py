@@ -117,7 +117,7 @@ class Linkage(eqx.Module):
                     "first (this also rules out cycles)."
                 )
         if placements is None:
-            placements = jnp.broadcast_to(jnp.eye(4), (n, 4, 4))
+            placements = jnp.asarray(np.broadcast_to(np.eye(4), (n, 4, 4)))
         else:
             placements = jnp.asarray(placements, dtype=float)
             check_shape("Linkage.placements", placements, (n, 4, 4))
