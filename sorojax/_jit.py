@@ -1,11 +1,10 @@
 """sorojax's compiled entry points: ``eqx.filter_jit`` with XLA options of its own.
 
 sorojax's programs are many small fusions and matrix products (6 x 6 adjoints, a
-few dozen coordinates). On CPU, XLA's newer fusion emitters compile each of them
-more slowly than its classic (LLVM IR) emitters and run them no faster, so sorojax
-compiles its own programs with the classic ones: ``xla_cpu_use_fusion_emitters =
-False`` (manual hybrid scene, 2-core CPU: statics compile 8.1 -> 5.4-6.0 s, warm
-solve unchanged; 2 s of dynamics 12.9 -> 10.7 s first call, 2.1 -> 1.6 s warm; see
+few dozen coordinates). On CPU, XLA's classic (LLVM IR) emitters compile them 20-35%
+faster than its newer fusion emitters and run them as fast or faster (the hybrid
+scene's dynamics ~30% faster), so sorojax compiles its own programs with
+``xla_cpu_use_fusion_emitters = False`` (`benchmarks/xla_options.py`, figures in
 benchmarks/README.md). Same arithmetic: results agree to rounding (tested).
 
 The options are probed once, on the first compile: a JAX whose XLA does not know
@@ -54,13 +53,15 @@ def _probed_options() -> dict[str, Any]:
     return dict(CPU_OPTIONS)
 
 
+try:  # private: a JAX without it gets XLA's defaults everywhere
+    from jax._src.core import trace_state_clean as _trace_state_clean
+except ImportError:  # pragma: no cover
+    _trace_state_clean = None
+
+
 def _top_level() -> bool:
     """No JAX trace active (JAX accepts compiler options on top-level jits only)."""
-    try:
-        from jax._src.core import trace_state_clean
-    except ImportError:  # pragma: no cover - a JAX without it: never pass options
-        return False
-    return trace_state_clean()
+    return _trace_state_clean is not None and _trace_state_clean()
 
 
 def jit(fun: Callable) -> Callable:

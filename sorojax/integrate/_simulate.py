@@ -217,10 +217,11 @@ def _input_function(u_fn, u_const) -> InputFunction:
 def _rates(linkage: Linkage, data, t, y, u_fn, u_const, generalized_force):
     """``(qd, qdd)``, M and (with inputs) the constrained state at ``(t, y)``.
 
-    Jitted so that the right-hand side is traced once per program: diffrax calls the
-    vector field from several places (term check, first stage, the stage loop), and
-    the efforts at the save points call it again; each call with the same shapes
-    reuses the first trace (and its lowering). XLA inlines the calls.
+    Jitted so that the right-hand side is traced once for the compiled program:
+    diffrax calls the vector field from several places (first stage, the stage loop)
+    and the efforts at the save points call it again; each call with the same
+    argument types reuses the first trace and its lowering (XLA inlines the calls).
+    diffrax's term check (an ``eval_shape``) traces it once more: 2 traces, from 5.
     """
     n = y.shape[0] // 2
     q, qd = y[:n], y[n:]
@@ -238,7 +239,6 @@ def _vector_field(linkage: Linkage, generalized_force, u_fn) -> MechanicalTerm:
 
     def field(t, y, args):
         data, u_const = args
-        t = jax.lax.convert_element_type(t, y.dtype)  # strong type, as at the saves
         ydot, M, _ = _rates(linkage, data, t, y, u_fn, u_const, generalized_force)
         return ydot, (M, data.K, data.D)
 
