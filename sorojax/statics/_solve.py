@@ -106,15 +106,25 @@ def _residual_and_closure(linkage: Linkage, data: LinkageData, q, t, lam, u, mu)
     return data.K @ q - F - Q, e
 
 
-def _value_with_jvp(value, fn, inputs, rule):
-    """``value`` (computed elsewhere, e.g. inside a solver loop) with a custom JVP.
+def _closure_converted(fn, *inputs):
+    """``(g, consts)``: ``fn(*inputs)`` as ``g(ins, c)``, in one trace.
 
-    ``fn(*inputs)`` is closure-converted (arrays it closes over become inputs too) and
-    the tangent of ``value`` is ``rule(g, ins, t_ins, c, t_c)`` with ``g(ins, c)`` the
-    converted ``fn``, ``c`` the lifted constants and ``t_*`` the tangents. Nothing of
-    the rule enters the primal program; reverse mode follows by transposition.
+    The arrays ``fn`` closes over are lifted into ``c``, so that custom derivatives
+    can see them.
     """
     conv, consts = jax.closure_convert(fn, *inputs)
+    return (lambda i, c_: conv(*i, *c_)), list(consts)
+
+
+def _value_with_jvp(value, converted, inputs, rule):
+    """``value`` (computed elsewhere, e.g. inside a solver loop) with a custom JVP.
+
+    ``converted = (g, c)`` from :func:`_closure_converted`; the tangent of ``value``
+    is ``rule(g, ins, t_ins, c, t_c)`` with ``t_*`` the tangents of ``inputs`` and
+    ``c``. Nothing of the rule enters the primal program; reverse mode follows by
+    transposition.
+    """
+    g, consts = converted
 
     @jax.custom_jvp
     def ident(v, ins, c):
@@ -124,15 +134,16 @@ def _value_with_jvp(value, fn, inputs, rule):
     def _ident_jvp(primals, tangents):
         v, ins, c = primals
         _, t_ins, t_c = tangents
-        return v, rule(lambda i, c_: conv(*i, *c_), ins, t_ins, c, t_c)
+        return v, rule(g, ins, t_ins, c, t_c)
 
-    return ident(jax.lax.stop_gradient(value), tuple(inputs), list(consts))
+    return ident(jax.lax.stop_gradient(value), tuple(inputs), consts)
 
 
-def _implicit_solution(fn, x_star, args, least_squares: bool):
-    """``x_star`` (a root of ``fn(x, args)``) with implicit-function derivatives.
+def _implicit_solution(converted, x_star, args, least_squares: bool):
+    """``x_star`` (a root of ``f(x, args)``) with implicit-function derivatives.
 
-    Its derivative with respect to ``args`` (and to any array ``fn`` closes over) is
+    ``converted``: ``f`` as ``(g, c)``, ``g((x, args), c)`` (``_closure_converted``).
+    Its derivative with respect to ``args`` (and to any array ``f`` closes over) is
     ``dx = -J^-1 (df/dargs dargs)`` with ``J = df/dx`` at ``x_star`` (LU, or the SVD
     pseudo-inverse for closed loops, whose redundant rows make J singular). Only a
     differentiated solve forms J. The solve is a dense JAX one, transposable for
@@ -151,11 +162,11 @@ def _implicit_solution(fn, x_star, args, least_squares: bool):
         return -jnp.linalg.solve(J, rhs)
 
     x_star = jax.lax.stop_gradient(x_star)
-    return _value_with_jvp(x_star, fn, (x_star, args), rule)
+    return _value_with_jvp(x_star, converted, (x_star, args), rule)
 
 
-def _with_derivative(g, value, inputs):
-    """``value`` (``g(*inputs)`` computed elsewhere) carrying the derivative of ``g``.
+def _with_derivative(converted, value, inputs):
+    """``value`` (``g(inputs, c)`` computed elsewhere) carrying the derivative of ``g``.
 
     The primal program keeps ``value`` as it is (no second evaluation of ``g``).
     """
@@ -163,7 +174,7 @@ def _with_derivative(g, value, inputs):
     def rule(g_, ins, t_ins, c, t_c):
         return jax.jvp(g_, (ins, c), (t_ins, t_c))[1]
 
-    return _value_with_jvp(value, g, inputs, rule)
+    return _value_with_jvp(value, converted, inputs, rule)
 
 
 def _jacobian_and_values(f_aux, x):
@@ -393,10 +404,16 @@ def _solve_statics(
             RESULTS.nonlinear_divergence,
             result,
         )
-    x_sol = _implicit_solution(fn, x_star, with_load(args, one), closed)
-    q, mu = full(x_sol, 1.0, u)
+    # One closure conversion (a trace of the residual) for both custom derivatives.
     full_args = with_load(args, one)
-    r = _with_derivative(lambda x_, a_: fn_aux(x_, a_)[1], r_star, (x_sol, full_args))
+    g_aux, consts = _closure_converted(fn_aux, x_star, full_args)
+    x_sol = _implicit_solution(
+        (lambda i, c: g_aux(i, c)[0], consts), x_star, full_args, closed
+    )
+    q, mu = full(x_sol, 1.0, u)
+    r = _with_derivative(
+        (lambda i, c: g_aux(i, c)[1], consts), r_star, (x_sol, full_args)
+    )
     e = f_star[nf:]
     rank = numerical_rank(J[nf:, :nf]) if closed else jnp.zeros((), dtype=int)
     return StaticsSolution(
