@@ -151,7 +151,8 @@ class Joint(eqx.Module):
 
 def _as_matrix(field: str, value, n: int) -> Array:
     # numpy for concrete values: a transfer at the end, no operation to compile
-    xp = jnp if isinstance(value, jax.core.Tracer) else np
+    traced = any(isinstance(v, jax.core.Tracer) for v in jax.tree.leaves(value))
+    xp = jnp if traced else np
     arr = xp.asarray(value, dtype=float)
     if arr.ndim == 0:
         check_positive(field, value, allow_zero=True)
