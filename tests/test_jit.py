@@ -51,10 +51,12 @@ def test_options_are_a_fresh_dict_and_turn_off(monkeypatch):
 
 
 def test_this_xla_knows_the_options():
-    """jaxlib here is the one CI installs: the options must be in effect on CPU
-    (a silent fall back to the defaults would lose the compile-time gain)."""
+    """On the jax 0.10 line (what CI installs today) the options must be in effect
+    on CPU: a silent fall back to XLA's defaults would lose the compile-time gain."""
     if jax.default_backend() != "cpu":
         pytest.skip("CPU options")
+    if not jax.__version__.startswith("0.10."):  # XLA may drop or rename the option
+        pytest.skip(f"the option was verified with jax 0.10; this is {jax.__version__}")
     assert sj.compiler_options() == sjit.CPU_OPTIONS
 
 
