@@ -5,6 +5,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float, Int
 
+from .._jit import jit
 from .._results import RESULTS
 
 
@@ -47,12 +48,44 @@ class Trajectory(eqx.Module):
 
     def poses(self, linkage) -> Float[Array, "n_save n_points 4 4"]:
         """World poses of every significant point at every save time."""
-        from ..kinematics import forward_kinematics
-
-        return jax.vmap(lambda q: forward_kinematics(linkage, q))(self.q)
+        return _poses(linkage, self.q)
 
     def tip_positions(self, linkage, link: int = -1) -> Array:
         """Tip position of ``link`` (1-based; -1 = the last link) at every save time."""
-        from ..kinematics import tip_pose
+        return _tip_positions(linkage, self.q, link)
 
-        return jax.vmap(lambda q: tip_pose(linkage, q, link)[:3, 3])(self.q)
+    def energies(self, linkage) -> Float[Array, "n_save 4"]:
+        """Kinetic, gravitational, elastic and total energy [J] at every save time.
+
+        Point wrenches and hooks are excluded, as in :func:`sorojax.total_energy`.
+        """
+        return _energies(linkage, self.q, self.qd)
+
+
+# One compiled program per linkage structure and number of save times, shared by the
+# methods' callers (scripts, plots), compiled with sorojax's XLA options.
+@jit
+def _poses(linkage, q):
+    from ..kinematics import forward_kinematics
+
+    return jax.vmap(lambda qi: forward_kinematics(linkage, qi))(q)
+
+
+@jit
+def _tip_positions(linkage, q, link: int):
+    from ..kinematics import tip_pose
+
+    return jax.vmap(lambda qi: tip_pose(linkage, qi, link)[:3, 3])(q)
+
+
+@jit
+def _energies(linkage, q, qd):
+    from ..dynamics import elastic_energy, gravitational_energy, kinetic_energy
+
+    def one(qi, qdi):
+        kin = kinetic_energy(linkage, qi, qdi)
+        grav = gravitational_energy(linkage, qi)
+        ela = elastic_energy(linkage, qi)
+        return jnp.stack([kin, grav, ela, kin + grav + ela])
+
+    return jax.vmap(one)(q, qd)

@@ -13,11 +13,8 @@ import pathlib
 import warnings
 from collections.abc import Sequence
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
-from .._jit import jit
 from ..io._files import as_path, check_target, writing
 
 VIDEO_SUFFIXES = (".mp4", ".gif")
@@ -326,11 +323,11 @@ def plot_time_series(
             labels = [f"${sym}_{{{j + 1}}}$" for j in range(values.shape[1])]
             ylabel = name
         elif name == "tip":
-            values = np.asarray(_tip_positions(linkage, traj))
+            values = np.asarray(traj.tip_positions(linkage))
             labels = ["x", "y", "z"]
             ylabel = "tip position [m]"
         else:
-            values = np.asarray(_energies(linkage, traj.q, traj.qd))
+            values = np.asarray(traj.energies(linkage))
             labels = ["kinetic", "gravitational", "elastic", "total"]
             ylabel = "energy [J]"
         for j, label in enumerate(labels):
@@ -345,23 +342,3 @@ def plot_time_series(
         a.grid(True, alpha=0.3)
     axes[-1].set_xlabel("t [s]")
     return fig
-
-
-@jit
-def _tip_positions(linkage, traj):
-    """``(n_save, 3)`` world position of the last link's tip [m]."""
-    return traj.tip_positions(linkage)
-
-
-@jit
-def _energies(linkage, q, qd):
-    """``(n_save, 4)`` kinetic, gravitational, elastic and total energy [J]."""
-    from ..dynamics import elastic_energy, gravitational_energy, kinetic_energy
-
-    def one(qi, qdi):
-        kin = kinetic_energy(linkage, qi, qdi)
-        grav = gravitational_energy(linkage, qi)
-        ela = elastic_energy(linkage, qi)
-        return jnp.stack([kin, grav, ela, kin + grav + ela])
-
-    return jax.vmap(one)(q, qd)
