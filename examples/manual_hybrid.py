@@ -113,7 +113,7 @@ def main(argv=None):
     )
     jax.block_until_ready(traj.q)
     wall = time.perf_counter() - t0
-    err = np.asarray(jax.vmap(lambda q: sj.closure_errors(linkage, q))(traj.q))
+    err = np.asarray(traj.closure_errors(linkage))
     print(
         f"dynamics over {args.t1:g} s, solver {traj.solver}: {int(traj.num_steps)} "
         f"steps ({int(traj.num_rejected_steps)} rejected), {wall:.1f} s incl. "

@@ -91,7 +91,7 @@ def driven(linkage, assemble, omega, t1, rtol, n_save):
         atol=rtol * 1e-2,
         n_save=n_save,
     )
-    e = jax.vmap(lambda q: sj.closure_errors(linkage, q))(traj.q)
+    e = traj.closure_errors(linkage)
     drift = np.abs(np.asarray(e)).max(axis=1)
     return traj, drift
 

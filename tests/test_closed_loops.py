@@ -114,9 +114,12 @@ def test_four_bar_driven_dynamics_drift_and_work_energy_balance(four_bar):
     assert tr.result == sj.RESULTS.successful
     e = jax.vmap(lambda q: sj.closure_errors(four_bar, q))(tr.q)
     assert float(jnp.abs(e).max()) < 1e-6
+    # the Trajectory's batched queries are the same functions (to rounding)
+    np.testing.assert_allclose(tr.closure_errors(four_bar), e, rtol=0, atol=1e-15)
     E = np.asarray(
         jax.vmap(lambda q, qd: sj.total_energy(four_bar, q, qd))(tr.q, tr.qd)
     )
+    np.testing.assert_allclose(tr.energies(four_bar)[:, 3], E, rtol=1e-12, atol=1e-14)
     P = np.asarray(tr.efforts[:, 0]) * w
     t = np.asarray(tr.t)
     work = np.concatenate([[0.0], np.cumsum(0.5 * (P[1:] + P[:-1]) * np.diff(t))])

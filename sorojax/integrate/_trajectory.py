@@ -61,6 +61,10 @@ class Trajectory(eqx.Module):
         """
         return _energies(linkage, self.q, self.qd)
 
+    def closure_errors(self, linkage) -> Float[Array, "n_save n_constraints"]:
+        """Closed-loop constraint errors e(q) [rad, m] at every save time (drift)."""
+        return _closure_errors(linkage, self.q)
+
 
 # One compiled program per linkage structure and number of save times, shared by the
 # methods' callers (scripts, plots), compiled with sorojax's XLA options.
@@ -89,3 +93,10 @@ def _energies(linkage, q, qd):
         return jnp.stack([kin, grav, ela, kin + grav + ela])
 
     return jax.vmap(one)(q, qd)
+
+
+@jit
+def _closure_errors(linkage, q):
+    from ..dynamics import closure_errors
+
+    return jax.vmap(lambda qi: closure_errors(linkage, qi))(q)
