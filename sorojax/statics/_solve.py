@@ -192,12 +192,15 @@ def _newton(fn_aux, x0, args, *, n_inc, linear_solver, max_steps, rtol, atol):
 
     ``fn_aux(x, lam) -> (f, aux)``. Each iteration evaluates f, its Jacobian and
     ``aux`` at the current x in one forward-mode pass (the only trace of the residual
-    in the compiled program). An increment has converged when the last Newton step
-    was small (``|dx_i| <= atol + rtol |x_i|``) and ``|f| <= atol`` at the point it
-    led to (intermediate increments: 1e-4, only a start for the next); the loop then
-    ends on the final increment, so that f, aux and the Jacobian returned are those
-    at the returned x. With ``n_inc = None`` a first evaluation at full load chooses
-    the number of increments (``n_inc_of(f)``) before any step.
+    in the compiled program). The final increment has converged when the last Newton
+    step was small (``|dx_i| <= atol + rtol |x_i|``) and ``|f| <= atol`` at the point
+    it led to; the loop then ends, so that f, aux and the Jacobian returned are those
+    at the returned x. An intermediate increment (tolerances 1e-4, only a start for
+    the next) ends at the first x whose residual and Newton step are both within them,
+    without an evaluation after the step. With ``n_inc = None`` a first evaluation at
+    full load chooses the number of increments (``n_inc_of(f)``); when that is one,
+    the same evaluation is the first Newton iteration. (Cable arm, 1000 tension sets:
+    evaluations per solve -1 to -2, loop 4.5 -> 3.7 ms per solve, vmap 4.2 -> 3.1 ms.)
 
     Returns ``(x, f, aux, J, steps, status)``, status 0 converged, 1 out of steps,
     2 non-finite values, 3 failed linear solve.
@@ -234,11 +237,14 @@ def _newton(fn_aux, x0, args, *, n_inc, linear_solver, max_steps, rtol, atol):
     def body(c):
         k, n, x, it, total, small, _, _, _ = c
         probe = k == 0
-        last = k >= n
         J, (f, aux) = evaluate(x, jnp.where(probe, one, k / n))
+        n = jnp.where(probe, n_inc_of(f), n)
+        # With one increment the probe (full load at x0) is its first iteration.
+        k = jnp.where(probe & (n == 1), one, k)
+        iterate = k > 0
+        last = k >= n
         tol_a = jnp.where(last, atol, 1e-4)
         tol_r = jnp.where(last, rtol, 1e-4)
-        converged = ~probe & small & (jnp.max(jnp.abs(f), initial=0.0) <= tol_a)
         finite = jnp.all(jnp.isfinite(f)) & jnp.all(jnp.isfinite(J))
         sol = lx.linear_solve(
             lx.MatrixLinearOperator(jnp.where(finite, J, 0.0)),
@@ -248,23 +254,27 @@ def _newton(fn_aux, x0, args, *, n_inc, linear_solver, max_steps, rtol, atol):
         )
         dx = sol.value
         solved = (sol.result == lx.RESULTS.successful) & jnp.all(jnp.isfinite(dx))
-        step = ~probe & ~converged & finite & solved & (it < max_steps)
+        dx_small = jnp.max(jnp.abs(dx) / (tol_a + tol_r * jnp.abs(x)), initial=0.0) <= 1
+        f_small = jnp.max(jnp.abs(f), initial=0.0) <= tol_a
+        # Final increment: the last step was small and so is the residual where it
+        # led (x then accurate to about the square of that step). Intermediate ones
+        # only start the next: their x is taken when its own step and residual are
+        # within the loose tolerances, without the step.
+        converged = iterate & f_small & jnp.where(last, small, dx_small & solved)
+        step = iterate & ~converged & finite & solved & (it < max_steps)
         status = jnp.select(
-            [probe, converged & last, converged, ~finite, it >= max_steps, ~solved],
+            [~iterate, converged & last, converged, ~finite, it >= max_steps, ~solved],
             [-1, 0, -1, 2, 1, 3],
             -1,
         ).astype(int_)
-        n_next = jnp.where(probe, n_inc_of(f), n)
-        k_next = jnp.where(probe | (converged & ~last), k + 1, k)
-        x_next = jnp.where(step, x - dx, x)
-        new_small = jnp.max(jnp.abs(dx) / (tol_a + tol_r * jnp.abs(x)), initial=0.0)
+        k_next = jnp.where(~iterate | (converged & ~last), k + 1, k)
         return (
             k_next,
-            n_next,
-            x_next,
-            jnp.where(step, it + 1, jnp.where(k_next > k, 0, it)),
+            n,
+            jnp.where(step, x - dx, x),
+            jnp.where(step, it + 1, 0),
             total + step.astype(int_),
-            step & (new_small <= 1.0),
+            step & dx_small,
             status,
             J,
             (f, aux),
