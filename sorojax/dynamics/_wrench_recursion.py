@@ -24,7 +24,7 @@ from ..kinematics._recursion import (
     chain_terms,
     link_base_poses,
     point_poses,
-    step_jacobians,
+    step_jacobians_transpose,
     steps,
 )
 from ..model._precompute import LinkageData
@@ -92,4 +92,4 @@ def force_from_wrenches(
     AdG = _Ad(ct.RG[sl, ss], ct.pG[sl, ss])
     y = jnp.einsum("sba,sb->sa", AdG, suffix)
     z = jnp.einsum("sba,sb->sa", k.T, y)
-    return jnp.einsum("sai,sa->i", step_jacobians(data, k, None), z)
+    return step_jacobians_transpose(data, k, z)

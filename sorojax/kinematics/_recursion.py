@@ -105,6 +105,29 @@ def step_jacobians(data: LinkageData, k: Steps, V) -> Array:
     return 0.5 * h * (P1 + P2) + c * (ad1 @ P2 - ad2 @ P1)
 
 
+def _ad_transpose_apply(a, z):
+    """``ad(a)^T z`` for stacks of twists ``a`` and wrenches ``z`` (moment first)."""
+    w, v = a[..., :3], a[..., 3:]
+    m, f = z[..., :3], z[..., 3:]
+    return jnp.concatenate([jnp.cross(m, w) + jnp.cross(f, v), jnp.cross(f, w)], -1)
+
+
+def step_jacobians_transpose(data: LinkageData, k: Steps, z) -> Array:
+    """``sum_s dOmega_s^T z_s`` for wrenches ``z`` ``(n_steps, 6)``: ``(n_dof,)``.
+
+    With ``dOmega = h/2 (P1 + P2) + c (ad(xi_1) P2 - ad(xi_2) P1)`` this is
+    ``sum_s P1^T (h/2 z - c ad(xi_2)^T z) + P2^T (h/2 z + c ad(xi_1)^T z)``: one
+    product with the constant strain bases and no ``(n_steps, 6, n_dof)`` array (the
+    contraction of that array, fused with its making, cost most of a residual under
+    ``vmap`` on CPU).
+    """
+    st = data.steps
+    h, c = st.h[:, None], st.c[:, None]
+    Z1 = 0.5 * h * z - c * _ad_transpose_apply(k.xi2, z)
+    Z2 = 0.5 * h * z + c * _ad_transpose_apply(k.xi1, z)
+    return jnp.einsum("szan,sza->n", st.Phi_z, jnp.stack([Z1, Z2], axis=1))
+
+
 class ChainLayout(NamedTuple):
     """Static layout of the per-link chains (numpy index arrays, built at trace time).
 
