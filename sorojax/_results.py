@@ -23,11 +23,19 @@ class RESULTS(eqx.Enumeration):
 class StaticsSolution(eqx.Module):
     """Equilibrium found by :func:`sorojax.statics.solve_statics`.
 
+    With sorojax's own Newton solver, ``residual_norm``, ``efforts`` and
+    ``constraint_error`` are evaluated at the solver's last iterate; ``q`` is that
+    iterate plus one more Newton step, already within the tolerances (so ``q`` is the
+    more accurate, to about the square of that step), which saves a whole evaluation
+    of the residual and its Jacobian per solve. Their values at ``q`` itself differ
+    by about the tolerances times the stiffness (e.g. 2e-10 relative in the manual
+    hybrid scene's revolute torque at the default 1e-10).
+
     Attributes:
         q: generalised coordinates at equilibrium, shape ``(n_dof,)``.
-        residual_norm: max-norm of the equilibrium residual ``K q - F(q) - B u`` at
-            ``q`` (units of the generalised forces: N m for angular coordinates, N
-            for linear joint coordinates).
+        residual_norm: max-norm of the equilibrium residual ``K q - F(q) - B u``
+            (units of the generalised forces: N m for angular coordinates, N for
+            linear joint coordinates).
         num_steps: Newton (or trust-region) iterations used, summed over load steps.
         result: a :class:`RESULTS` code; ``RESULTS.successful`` when converged.
         efforts: generalised efforts of the prescribed joint coordinates (in the
