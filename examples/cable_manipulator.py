@@ -28,7 +28,10 @@ toward world +y, cable ``+z`` toward world +x.
 
 Run::
 
-    python examples/cable_manipulator.py [--t1 8] [--order 2] [--out DIR]
+    python examples/cable_manipulator.py [--t1 8] [--order 2] [--video] [--out DIR]
+
+``--video`` also writes the controlled motion as ``cable_manipulator.mp4`` (a GIF
+without ffmpeg).
 """
 
 import argparse
@@ -47,6 +50,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 import sorojax as sj  # noqa: E402
 from sorojax._mechanisms import CABLE_NAMES, cable_manipulator  # noqa: E402
+from sorojax.viz import animate  # noqa: E402
 
 TENSION_SETS = (
     (0.0, 0.0, 0.0, 0.0),
@@ -134,15 +138,19 @@ def main(argv=None):
         "--target", type=float, nargs=2, default=(0.10, 0.15), help="tip x y [m]"
     )
     ap.add_argument("--n-save", type=int, default=161, help="saved instants")
-    ap.add_argument("--out", default=".", help="folder for the PNG")
-    ap.add_argument("--overwrite", action="store_true", help="replace an old PNG")
+    ap.add_argument("--out", default=".", help="folder for the outputs")
+    ap.add_argument("--video", action="store_true", help="also write an animation")
+    ap.add_argument("--overwrite", action="store_true", help="replace old outputs")
     args = ap.parse_args(argv)
     sj.enable_compilation_cache()  # later runs load the compiled programs
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     path = out / "cable_manipulator.png"
-    if path.exists() and not args.overwrite:
-        raise SystemExit(f"{path} exists; pass --overwrite to replace it")
+    video = out / "cable_manipulator.mp4"
+    outputs = [path] + ([video, video.with_suffix(".gif")] if args.video else [])
+    for p in outputs:
+        if p.exists() and not args.overwrite:
+            raise SystemExit(f"{p} exists; pass --overwrite to replace it")
 
     # ---------------------------------------------------------------- statics
     arm = cable_manipulator(order=args.order, eta=ETA)
@@ -181,6 +189,9 @@ def main(argv=None):
 
     _plot(shapes, target, traj, tip_t, err, u, path)
     print(f"wrote {path}")
+    if args.video:
+        written = animate(controlled, traj, video, fps=20, overwrite=args.overwrite)
+        print(f"wrote {written}")
     return {
         "tension_sets": np.asarray(TENSION_SETS),
         "tips": np.asarray(tips),

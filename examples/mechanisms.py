@@ -19,7 +19,10 @@ torque as the joint effort.
 
 Run::
 
-    python examples/mechanisms.py [--t1 3] [--omega 6.283] [--out DIR]
+    python examples/mechanisms.py [--t1 3] [--omega 6.283] [--video] [--out DIR]
+
+``--video`` also writes each driven mechanism as ``NAME.mp4`` (a GIF without ffmpeg),
+seen from +z.
 """
 
 import argparse
@@ -46,6 +49,7 @@ from sorojax._mechanisms import (  # noqa: E402
     slider_crank_assemble,
     slider_crank_position,
 )
+from sorojax.viz import animate  # noqa: E402
 
 MECHANISMS = {
     "four_bar": (four_bar, four_bar_assemble),
@@ -120,17 +124,23 @@ def main(argv=None):
         "--only", choices=sorted(MECHANISMS), default=None, help="one mechanism"
     )
     ap.add_argument("--statics-only", action="store_true", help="skip the dynamics")
-    ap.add_argument("--out", default=".", help="folder for the PNG")
-    ap.add_argument("--overwrite", action="store_true", help="replace an old PNG")
+    ap.add_argument("--out", default=".", help="folder for the outputs")
+    ap.add_argument("--video", action="store_true", help="also write animations")
+    ap.add_argument("--overwrite", action="store_true", help="replace old outputs")
     args = ap.parse_args(argv)
     sj.enable_compilation_cache()  # later runs load the compiled programs
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     path = out / "mechanisms.png"
-    if path.exists() and not args.overwrite:
-        raise SystemExit(f"{path} exists; pass --overwrite to replace it")
-
     names = [args.only] if args.only else list(MECHANISMS)
+    videos = {n: out / f"{n}.mp4" for n in names} if args.video else {}
+    if args.statics_only:
+        videos = {}
+    outputs = [path] + [p for v in videos.values() for p in (v, v.with_suffix(".gif"))]
+    for p in outputs:
+        if p.exists() and not args.overwrite:
+            raise SystemExit(f"{p} exists; pass --overwrite to replace it")
+
     angles = np.linspace(0.0, 2 * math.pi, args.n_angles, endpoint=False)
     results = {}
     for name in names:
@@ -166,6 +176,12 @@ def main(argv=None):
 
     _plot(results, args, path)
     print(f"wrote {path}")
+    for name, video in videos.items():
+        lk, traj = results[name]["linkage"], results[name]["traj"]
+        written = animate(
+            lk, traj, video, fps=20, view=(90, -90), overwrite=args.overwrite
+        )
+        print(f"wrote {written}")
     return results
 
 
