@@ -133,9 +133,8 @@ def main(argv=None):
     out.mkdir(parents=True, exist_ok=True)
     path = out / "mechanisms.png"
     names = [args.only] if args.only else list(MECHANISMS)
-    videos = {n: out / f"{n}.mp4" for n in names} if args.video else {}
-    if args.statics_only:
-        videos = {}
+    with_video = args.video and not args.statics_only
+    videos = {n: out / f"{n}.mp4" for n in names} if with_video else {}
     outputs = [path] + [p for v in videos.values() for p in (v, v.with_suffix(".gif"))]
     for p in outputs:
         if p.exists() and not args.overwrite:
