@@ -93,6 +93,33 @@ def test_four_bar_statics_residual_redundancy_and_virtual_work_torque(four_bar):
     assert abs(float(sol.efforts[0]) - tau) < 1e-7 * abs(tau)
 
 
+def test_statics_q_is_one_small_newton_step_past_the_reported_iterate(four_bar):
+    """Newton stops without an evaluation only to confirm convergence.
+
+    The residual, efforts and loop error are those of its last iterate; q is that
+    iterate plus a Newton step already within the tolerances (StaticsSolution's
+    docstring). Started at the assembly for 1.0 rad with the crank prescribed at 0.6
+    (a jump: two load increments), the last iterate's residual is ~1e-12. Re-evaluated
+    at q, with the returned multipliers, the free rows' residual and the loop error are
+    at least 1e3 times smaller (quadratic convergence: about the square of that step;
+    floor 1e-14 for roundoff), so the step was taken; the crank row (the effort)
+    equals the reported effort to 1e-9 relative (the step times the stiffness).
+    """
+    from sorojax.statics import equilibrium_residual
+
+    u = jnp.array([0.6])
+    sol = sj.solve_statics(four_bar, assemble(1.0), u=u)
+    assert sol.result == sj.RESULTS.successful
+    qi, _ = four_bar.prescribed
+    free = np.setdiff1d(np.arange(four_bar.n_dof), qi)
+    r = equilibrium_residual(four_bar, sj.precompute(four_bar), sol.q, u=u, mu=sol.lam)
+    e = sj.closure_errors(four_bar, sol.q)
+    assert float(jnp.abs(r[free]).max()) <= max(1e-3 * float(sol.residual_norm), 1e-14)
+    assert float(jnp.abs(e).max()) <= max(1e-3 * float(sol.constraint_error), 1e-14)
+    tau = float(sol.efforts[0])
+    assert abs(float(r[qi][0]) - tau) <= 1e-9 * abs(tau)
+
+
 def test_four_bar_driven_dynamics_drift_and_work_energy_balance(four_bar):
     """Crank driven at pi t / 2 for 5 s from rest: constraint drift and power balance.
 
