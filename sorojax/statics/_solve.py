@@ -500,16 +500,19 @@ def solve_statics(
             for prescribed joints their coordinates; default zeros.
         t: time at which time-dependent loads are evaluated [s].
         solver: an optimistix root finder or least-squares solver; default
-            ``optx.Newton(rtol, atol)`` on the Jacobi-scaled residual (with closed
-            loops: on the residual and the constraint errors, unknowns q and the
-            multipliers, solved with an SVD so that redundant constraint rows, e.g.
-            of a planar loop, give the minimum-norm multipliers instead of failing).
+            sorojax's own Newton loop (tolerances ``rtol``, ``atol``) on the
+            Jacobi-scaled residual (with closed loops: on the residual and the
+            constraint errors, unknowns q and the multipliers, solved with an SVD so
+            that redundant constraint rows, e.g. of a planar loop, give the
+            minimum-norm multipliers instead of failing).
         load_steps: number of equal load increments; ``None`` (default) chooses it
             from the size of the Jacobi-scaled residual at ``q0`` (about the linear
             estimate of the largest coordinate change, e.g. a rotation in rad), so
             that each increment moves the coordinates by about ``load_increment``
             (prescribed coordinates by a quarter of it), capped at
-            ``max_load_steps``.
+            ``max_load_steps``. Under ``vmap`` the batch runs until its most-stepped
+            member is done: where the loads are moderate, ``load_steps=1`` can be
+            markedly faster (check ``result``).
         max_load_steps: cap of the automatic schedule.
         load_increment: target coordinate change per automatic increment.
         max_steps: maximum iterations per load step.
