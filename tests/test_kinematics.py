@@ -309,11 +309,16 @@ def test_backward_wrench_recursion_equals_jacobian_transpose(tree, key):
 
     k1, k2 = jax.random.split(key)
     q = 0.5 * jax.random.normal(k1, (tree.n_dof,))
-    data = sj.precompute(tree)
-    g, records = poses_with_records(data, q)
-    W = jax.random.normal(k2, (g.shape[0], 6))
-    F = force_from_wrenches(data, records, W)
-    F_ref = jnp.einsum("pai,pa->i", sj.jacobians(tree, q), W)
+    W = jax.random.normal(k2, (tree.layout.n_points, 6))
+
+    @jax.jit  # one compile instead of op-by-op dispatch
+    def both(q, W):
+        data = sj.precompute(tree)
+        g, records = poses_with_records(data, q)
+        F_ref = jnp.einsum("pai,pa->i", sj.jacobians(tree, q), W)
+        return g, force_from_wrenches(data, records, W), F_ref
+
+    g, F, F_ref = both(q, W)
     np.testing.assert_allclose(g, sj.forward_kinematics(tree, q), atol=1e-14)
     err = float(jnp.max(jnp.abs(F - F_ref)) / jnp.max(jnp.abs(F_ref)))
     assert err < 1e-10, f"backward recursion vs J^T W: relative error {err:.2e}"
