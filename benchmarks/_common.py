@@ -2,8 +2,10 @@
 
 import os
 import platform
+import statistics
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -55,3 +57,24 @@ def environment(**extra):
         "load_average_at_start": list(os.getloadavg()),
         "git": git_state(),
     } | extra
+
+
+def timed(f, *args, repeats, warmup=True):
+    """(median, min) wall time [s] of ``f(*args)`` over ``repeats`` blocked calls."""
+    import jax
+
+    if warmup:
+        jax.block_until_ready(f(*args))
+    ts = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        jax.block_until_ready(f(*args))
+        ts.append(time.perf_counter() - t0)
+    return statistics.median(ts), min(ts)
+
+
+def compile_time(jitted, *args):
+    """(compiled executable, seconds to trace + lower + compile)."""
+    t0 = time.perf_counter()
+    compiled = jitted.lower(*args).compile()
+    return compiled, time.perf_counter() - t0

@@ -36,7 +36,6 @@ import csv
 import json
 import math
 import os
-import statistics
 import time
 from pathlib import Path
 
@@ -46,7 +45,7 @@ jax.config.update("jax_enable_x64", True)
 
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
-from _common import environment  # noqa: E402
+from _common import compile_time, environment, timed  # noqa: E402
 
 import sorojax as sj  # noqa: E402
 from sorojax._mechanisms import cable_manipulator  # noqa: E402
@@ -57,29 +56,10 @@ ORDER = 2  # Legendre order of the arm's divisions (12 DoF)
 HYBRID_ANGLE, HYBRID_TENSION, HYBRID_T1 = -math.pi / 4, 50.0, 5.0
 
 
-def timed(f, *args, repeats, warmup=True):
-    """(median, min) wall time [s] of ``f(*args)`` over ``repeats`` blocked calls."""
-    if warmup:
-        jax.block_until_ready(f(*args))
-    ts = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(f(*args))
-        ts.append(time.perf_counter() - t0)
-    return statistics.median(ts), min(ts)
-
-
 def jit(f):
     """``jax.jit`` with sorojax's XLA options (what its own entry points compile
     with; JAX takes them on top-level jits only)."""
     return jax.jit(f, compiler_options=sj.compiler_options())
-
-
-def compile_time(jitted, *args):
-    """(compiled executable, seconds to trace + lower + compile)."""
-    t0 = time.perf_counter()
-    compiled = jitted.lower(*args).compile()
-    return compiled, time.perf_counter() - t0
 
 
 # ------------------------------------------------------------------------ cables

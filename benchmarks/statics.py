@@ -23,7 +23,6 @@ import argparse
 import json
 import math
 import os
-import statistics
 import time
 from pathlib import Path
 
@@ -33,7 +32,7 @@ jax.config.update("jax_enable_x64", True)
 
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
-from _common import environment  # noqa: E402
+from _common import compile_time, environment, timed  # noqa: E402
 
 import sorojax  # noqa: E402
 from sorojax.scenes import cantilever  # noqa: E402
@@ -51,25 +50,6 @@ MODES_12 = (1, 1, 1, 0, 0, 0)  # torsion + bending about y and z
 ORDER_12 = 3  # cubic: 3 modes x 4 = 12 DoF
 MODES_30 = (1, 1, 1, 0, 0, 0)
 ORDER_30 = 9  # 3 modes x 10 = 30 DoF
-
-
-def timed(f, *args, repeats, warmup=True):
-    """Median and min wall time [s] of ``f(*args)`` (after one warm-up call)."""
-    if warmup:
-        jax.block_until_ready(f(*args))
-    ts = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(f(*args))
-        ts.append(time.perf_counter() - t0)
-    return statistics.median(ts), min(ts)
-
-
-def compile_time(jitted, *args):
-    """(compiled executable, seconds spent tracing + lowering + compiling)."""
-    t0 = time.perf_counter()
-    compiled = jitted.lower(*args).compile()
-    return compiled, time.perf_counter() - t0
 
 
 def tip_wrench(alpha):
