@@ -5,7 +5,7 @@ points take ``throw`` (raise on failure) as optimistix and diffrax do.
 """
 
 import equinox as eqx
-from jaxtyping import Array, Float, Int
+from jaxtyping import Array, Bool, Float, Int
 
 
 class RESULTS(eqx.Enumeration):
@@ -46,6 +46,21 @@ class StaticsSolution(eqx.Module):
         constraint_rank: numerical rank of the constraint Jacobian with respect to
             the free (not prescribed) coordinates (less than
             ``Linkage.n_constraints`` when rows are redundant, e.g. a planar loop).
+        stable: whether the equilibrium is stable: no eigenvalue of the tangent
+            stiffness restricted to the constraint manifold (prescribed coordinates
+            held, with the constraint-curvature term of the multipliers) is
+            negative (:mod:`sorojax.statics._stability`; eigenvalues within 1e-9 of
+            the largest are neutral: symmetries, unloaded mechanisms, critical
+            points; ``min_eigenvalue`` shows them). Under follower or other
+            non-conservative loads this is the symmetric part's test: no
+            divergence, flutter is not seen (see the README).
+        n_negative: number of negative eigenvalues of that reduced tangent
+            stiffness (0 at a stable equilibrium; its Morse index otherwise).
+        min_eigenvalue: its smallest eigenvalue, dimensionless (in coordinates
+            scaled by each one's own stiffness, diag(K)^(1/2) q: near 1 for an
+            unloaded elastic rod, 0 at a buckling load); ``+inf`` when no free
+            direction is left. All three are taken at the last iterate's Jacobian
+            (no extra evaluation) and carry no gradient.
     """
 
     q: Float[Array, " n_dof"]
@@ -56,3 +71,6 @@ class StaticsSolution(eqx.Module):
     lam: Float[Array, " n_constraints"]
     constraint_error: Float[Array, ""]
     constraint_rank: Int[Array, ""]
+    stable: Bool[Array, ""]
+    n_negative: Int[Array, ""]
+    min_eigenvalue: Float[Array, ""]

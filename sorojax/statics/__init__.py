@@ -6,3 +6,15 @@ from ._solve import (
 from ._solve import (
     solve_statics as solve_statics,
 )
+from ._stability import (
+    UnstableEquilibriumWarning as UnstableEquilibriumWarning,
+)
+from ._continuation import (
+    CriticalPoint as CriticalPoint,
+)
+from ._continuation import (
+    EquilibriumPath as EquilibriumPath,
+)
+from ._continuation import (
+    continuation as continuation,
+)

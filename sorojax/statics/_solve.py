@@ -19,6 +19,8 @@ residual rows carry their derivative the same way. A user's optimistix solver
 (``solver=``) runs each increment with optimistix's own loop.
 """
 
+import warnings
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -42,6 +44,11 @@ from ..dynamics._wrench_recursion import force_from_wrenches, poses_with_records
 from ..kinematics._api import _as_q
 from ..model._linkage import Linkage
 from ..model._precompute import LinkageData, precompute
+from ._stability import (
+    UnstableEquilibriumWarning,
+    reduced_tangent_spectrum,
+    stability_summary,
+)
 
 
 def _row_scale(K) -> Array:
@@ -104,6 +111,29 @@ def _residual_and_closure(linkage: Linkage, data: LinkageData, q, t, lam, u, mu)
     else:
         F = jnp.einsum("pai,pa->i", kin.J, W)
     return data.K @ q - F - Q, e
+
+
+def free_coordinates(linkage: Linkage) -> np.ndarray:
+    """Indices of the coordinates statics solves for (all but the prescribed)."""
+    return np.setdiff1d(np.arange(linkage.n_dof), linkage.prescribed[0])
+
+
+def scaled_equilibrium(linkage: Linkage, data: LinkageData, x, t, lam, u, q_p):
+    """``(f, r)``: the statics solver's rows at unknowns ``x = (q_free, mu)``.
+
+    ``f = (diag(K)^-1 r_free, e)`` (Jacobi-scaled equilibrium rows of the free
+    coordinates, then the closure errors); ``r`` the unscaled residual, all rows.
+    Prescribed coordinates take the values ``q_p`` (``Linkage.prescribed`` order).
+    """
+    free = free_coordinates(linkage)
+    nf = len(free)
+    q = jnp.zeros(linkage.n_dof, x.dtype).at[free].set(x[:nf])
+    qi = linkage.prescribed[0]
+    if len(qi):
+        q = q.at[qi].set(q_p)
+    mu = x[nf:] if linkage.n_constraints else None
+    r, e = _residual_and_closure(linkage, data, q, t, lam, u, mu)
+    return jnp.concatenate([_row_scale(data.K)[free] * r[free], e]), r
 
 
 def _closure_converted(fn, *inputs):
@@ -187,7 +217,19 @@ def _jacobian_and_values(f_aux, x):
     return jax.jacfwd(f_and_out, has_aux=True)(x)
 
 
-def _newton(fn_aux, x0, args, *, n_inc, linear_solver, max_steps, rtol, atol):
+def _newton(
+    fn_aux,
+    x0,
+    args,
+    *,
+    n_inc,
+    linear_solver,
+    max_steps,
+    rtol,
+    atol,
+    n_mult=0,
+    max_step=jnp.inf,
+):
     """Newton's method over load increments lambda = k / n, k = 1 .. n, one loop.
 
     ``fn_aux(x, lam) -> (f, aux)``. Each iteration evaluates f, its Jacobian and
@@ -202,6 +244,15 @@ def _newton(fn_aux, x0, args, *, n_inc, linear_solver, max_steps, rtol, atol):
     chooses the number of increments (``n_inc_of(f)``); when that is one, the same
     evaluation is the first Newton iteration. (Evaluations per solve: cable arm
     7.33 -> 5.46, manual hybrid 10 -> 8.)
+
+    The last ``n_mult`` unknowns are Lagrange multipliers (closed loops): the first
+    evaluation (at full load) then also sets them by least squares at ``x0``
+    (``J_{r,mu} dmu = -r``) and is not an iteration, so that the first Newton step
+    sees the constraint-curvature term of the tangent stiffness. Starting them at
+    zero instead makes that step ignore the loop forces, and from a buckled guess of
+    a clamped-clamped rod it jumped to the straight, unstable equilibrium. No
+    coordinate moves by more than ``max_step`` per iteration (the step is scaled
+    down, its direction kept).
 
     Returns ``(x, f, aux, J, steps, status)``, status 0 converged, 1 out of steps,
     2 non-finite values, 3 failed linear solve.
@@ -220,8 +271,10 @@ def _newton(fn_aux, x0, args, *, n_inc, linear_solver, max_steps, rtol, atol):
     int_ = jnp.asarray(0).dtype
     # carry: k (0: probe at full load), n, x, steps in this increment, total steps,
     # last step small, status (-1 running), J, (f, aux)
+    probe_first = n_inc_given is None or n_mult > 0
+    n_eq = x0.shape[0] - n_mult  # equilibrium rows (the rest: constraint errors)
     init = (
-        jnp.zeros((), dtype) if n_inc_given is None else one,
+        jnp.zeros((), dtype) if probe_first else one,
         one if n_inc_given is None else jnp.asarray(n_inc_given, dtype),
         x0,
         jnp.zeros((), int_),
@@ -239,9 +292,22 @@ def _newton(fn_aux, x0, args, *, n_inc, linear_solver, max_steps, rtol, atol):
         k, n, x, it, total, small, _, _, _ = c
         probe = k == 0
         J, (f, aux) = evaluate(x, jnp.where(probe, one, k / n))
-        n = jnp.where(probe, n_inc_of(f), n)
-        # With one increment the probe (full load at x0) is its first iteration.
-        k = jnp.where(probe & (n == 1), one, k)
+        if n_mult:
+            # Least-squares multipliers at x0; the residual the increments are
+            # chosen from is the one left after them.
+            J_rmu = jnp.where(jnp.isfinite(J[:n_eq, n_eq:]), J[:n_eq, n_eq:], 0.0)
+            f_r = jnp.where(jnp.isfinite(f[:n_eq]), f[:n_eq], 0.0)
+            dmu = jnp.linalg.lstsq(J_rmu, -f_r)[0]
+            x = jnp.where(probe, x.at[n_eq:].add(dmu), x)
+            f_probe = f.at[:n_eq].add(J_rmu @ dmu)
+        else:
+            f_probe = f
+        if n_inc_given is None:
+            n = jnp.where(probe, n_inc_of(f_probe), n)
+        # With one increment the probe (full load at x0) is its first iteration
+        # (not with multipliers: they were just reset).
+        if not n_mult:
+            k = jnp.where(probe & (n == 1), one, k)
         iterate = k > 0
         last = k >= n
         tol_a = jnp.where(last, atol, 1e-4)
@@ -253,7 +319,14 @@ def _newton(fn_aux, x0, args, *, n_inc, linear_solver, max_steps, rtol, atol):
             linear_solver,
             throw=False,
         )
+        # Step cap: no coordinate moves more than max_step (scaled units, about rad)
+        # in one iteration, the direction kept. Far from a root a full Newton step
+        # can leave the basin of the equilibrium near the guess (a slightly buckled
+        # guess of a clamped-clamped rod diverged); near a root steps are far below.
         dx = sol.value
+        dx = dx / jnp.maximum(
+            jnp.max(jnp.abs(dx[:n_eq]), initial=0.0) / max_step, 1.0
+        )
         solved = (sol.result == lx.RESULTS.successful) & jnp.all(jnp.isfinite(dx))
         dx_small = jnp.max(jnp.abs(dx) / (tol_a + tol_r * jnp.abs(x)), initial=0.0) <= 1
         f_small = jnp.max(jnp.abs(f), initial=0.0) <= tol_a
@@ -316,7 +389,7 @@ def _solve_statics(
     q0 = jnp.zeros(n) if q0 is None else _as_q(linkage, q0, "q0")
     u = as_inputs(linkage, u, q0.dtype)
     qi, ui = linkage.prescribed
-    free = np.setdiff1d(np.arange(n), qi)
+    free = free_coordinates(linkage)
     nf = len(free)
     n_c = linkage.n_constraints
     closed = n_c > 0
@@ -341,11 +414,8 @@ def _solve_statics(
     def fn_aux(x, args):
         data_, lam, u_, dyn_, q_p0_, t_ = args
         linkage_ = eqx.combine(dyn_, static)
-        q, mu = full(x, lam, u_, q_p0_)
-        r, e = _residual_and_closure(
-            linkage_, data_, q, t_, lam, u_, mu if closed else None
-        )
-        return jnp.concatenate([_row_scale(data_.K)[free] * r[free], e]), r
+        q_p = q_p0_ + lam * (u_[ui] - q_p0_) if len(qi) else None
+        return scaled_equilibrium(linkage_, data_, x, t_, lam, u_, q_p)
 
     def fn(x, args):
         return fn_aux(x, args)[0]
@@ -383,6 +453,8 @@ def _solve_statics(
             max_steps=max_steps,
             rtol=rtol,
             atol=atol,
+            n_mult=n_c,
+            max_step=load_increment,
         )
         result = RESULTS.where(
             status == 0,
@@ -430,6 +502,10 @@ def _solve_statics(
     )
     e = f_star[nf:]
     rank = numerical_rank(J[nf:, :nf]) if closed else jnp.zeros((), dtype=int)
+    eigenvalues, _, n_manifold = reduced_tangent_spectrum(
+        J, nf, jax.lax.stop_gradient(_row_scale(data.K)[free])
+    )
+    stable, n_negative, lam_min = stability_summary(eigenvalues, n_manifold)
     return StaticsSolution(
         q=q,
         residual_norm=jnp.max(jnp.abs(r[free]), initial=0.0),
@@ -439,6 +515,9 @@ def _solve_statics(
         lam=mu,
         constraint_error=jnp.max(jnp.abs(e), initial=0.0),
         constraint_rank=rank,
+        stable=stable,
+        n_negative=n_negative,
+        min_eigenvalue=lam_min,
     )
 
 
@@ -488,8 +567,19 @@ def solve_statics(
     rtol: float = 1e-10,
     atol: float = 1e-10,
     throw: bool = True,
+    warn_unstable: bool = True,
 ) -> StaticsSolution:
     """Solve the static equilibrium of ``linkage`` (the manual's ``statics``).
+
+    Every solution reports its stability (``stable``, ``n_negative``,
+    ``min_eigenvalue``: the tangent stiffness on the constraint manifold, from the
+    last Newton Jacobian at no extra evaluation). Newton's method converges to the
+    equilibrium whose basin holds ``q0``, stable or not: with closed loops the
+    multipliers start from their least-squares values at ``q0`` (so the first step
+    sees the loop forces' curvature) and no coordinate moves more than
+    ``load_increment`` per iteration, which keeps a buckled guess on the buckled
+    branch; a straight guess of a compressed rod still returns the straight,
+    unstable equilibrium, flagged (and warned about outside ``jit``).
 
     Args:
         linkage: the model.
@@ -522,11 +612,15 @@ def solve_statics(
         throw: raise ``RuntimeError`` if the solve fails (under an outer ``jit`` an
             equinox runtime error); use ``throw=False`` under ``vmap`` and read
             ``result``.
+        warn_unstable: outside ``jit``/``vmap``, warn
+            (:class:`~sorojax.UnstableEquilibriumWarning`) when the solve converged
+            to an unstable equilibrium; inside them read ``stable``.
 
     Returns:
         A :class:`~sorojax.StaticsSolution` with q, the residual max-norm, the total
         iteration count, a result code, the efforts of prescribed joints, the
-        closed-loop multipliers, constraint error and rank.
+        closed-loop multipliers, constraint error and rank, and the stability
+        report.
 
     Raises:
         ValueError: bad ``q0`` shape or ``load_steps`` < 1.
@@ -545,10 +639,22 @@ def solve_statics(
         rtol=rtol,
         atol=atol,
     )
+    failed = sol.result != RESULTS.successful
+    traced = isinstance(failed, jax.core.Tracer)
+    if warn_unstable and not traced and not bool(failed) and not bool(sol.stable):
+        warnings.warn(
+            f"solve_statics converged to an UNSTABLE equilibrium: the tangent "
+            f"stiffness on the constraint manifold has {int(sol.n_negative)} negative "
+            f"eigenvalue(s) (smallest {float(sol.min_eigenvalue):.3e}, scaled by "
+            "the diagonal stiffness). A stable one may lie nearby: try a q0 closer "
+            "to the shape you expect (e.g. buckled), or trace the equilibrium path "
+            "with sorojax.continuation. Pass warn_unstable=False to silence this.",
+            UnstableEquilibriumWarning,
+            stacklevel=2,
+        )
     if not throw:
         return sol
-    failed = sol.result != RESULTS.successful
-    if isinstance(failed, jax.core.Tracer):  # inside an outer jit / vmap / grad
+    if traced:  # inside an outer jit / vmap / grad
         return eqx.tree_at(lambda s: s.q, sol, sol.result.error_if(sol.q, failed))
     if bool(failed):
         message = RESULTS._index_to_message[int(sol.result._value)]
