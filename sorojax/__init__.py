@@ -132,10 +132,10 @@ from .model import (
     translation as translation,
 )
 from .model._precompute import precompute as precompute
-from .statics import solve_statics as solve_statics
 from .statics import CriticalPoint as CriticalPoint
 from .statics import EquilibriumPath as EquilibriumPath
-from .statics import continuation as continuation
 from .statics import UnstableEquilibriumWarning as UnstableEquilibriumWarning
+from .statics import continuation as continuation
+from .statics import solve_statics as solve_statics
 
 __version__ = "0.1.0"

@@ -325,3 +325,129 @@ def l_beam(
         point_wrenches=[PointWrench(1, [0.0, 0.0, 0.0, 0.0, 0.0, -load])],
         closed_loops=[ClosedLoopJoint("N", link_A=2, link_B=0, g_B=g_clamp)],
     )
+
+
+# ---------------------------------------------------------------- stability scenes
+# Rods of E 1 MPa, radius 5 mm, bending about z only (inextensible, shearless: the
+# classical elastica), loaded by a unit of their critical load, so that the
+# continuation's load factor reads as P / P_cr (issue 16).
+ELASTICA_E, ELASTICA_RADIUS, ELASTICA_LENGTH = 1e6, 0.005, 0.4
+
+
+def elastica_bending_stiffness() -> float:
+    """E I of the elastica scenes' rods [N m^2]."""
+    return ELASTICA_E * math.pi * ELASTICA_RADIUS**4 / 4
+
+
+def euler_column(order: int = 6) -> Linkage:
+    """Clamped-free column under a compressive dead load P_cr = pi^2 EI / (4 L^2).
+
+    A soft rod clamped at the origin along x, bending about z only (Legendre
+    ``order``), loaded at its tip by ``(0, 0, 0, -P_cr, 0, 0)`` (global). With
+    :func:`sorojax.continuation` the load factor is P / P_cr: the straight column
+    bifurcates at 1.
+    """
+    L = ELASTICA_LENGTH
+    P_cr = math.pi**2 * elastica_bending_stiffness() / (4 * L**2)
+    rod = SoftLink(
+        Division(
+            L,
+            CircularSection(ELASTICA_RADIUS),
+            LegendreBasis((0, 0, 1, 0, 0, 0), order),
+        ),
+        Material(ELASTICA_E),
+    )
+    return Linkage(rod, point_wrenches=[PointWrench(1, [0.0, 0, 0, -P_cr, 0, 0])])
+
+
+def pinned_elastica(order: int = 8) -> Linkage:
+    """Pinned-pinned column (Euler's elastica) under a dead load P_cr = pi^2 EI / L^2.
+
+    Link 1: the rod on a revolute joint about z at the origin (the fixed pin),
+    bending about z only (Legendre ``order``); link 2: a 1 cm, 10 g slider block
+    pinned to the rod's tip by a revolute joint about z and kept on the x axis,
+    without turning, by a prismatic closed-loop joint along x to the ground (the
+    roller). The load ``(0, 0, 0, -P_cr, 0, 0)`` acts on the slider. Coordinate 0
+    is the end rotation; with :func:`sorojax.continuation` the load factor is
+    P / P_cr (the elastica's end rotation alpha has P / P_cr = (2 K(sin(alpha/2)) /
+    pi)^2, e.g. 1.1517 at 60 degrees, Timoshenko & Gere 1961, table 2-7).
+    """
+    L = ELASTICA_LENGTH
+    P_cr = math.pi**2 * elastica_bending_stiffness() / L**2
+    z = (0.0, 0.0, 1.0)
+    rod = SoftLink(
+        Division(
+            L,
+            CircularSection(ELASTICA_RADIUS),
+            LegendreBasis((0, 0, 1, 0, 0, 0), order),
+        ),
+        Material(ELASTICA_E),
+        joint=Joint("R", axis=z),
+    )
+    block = 0.01
+    slider = RigidLink(
+        Joint("R", axis=z), length=block, mass=0.01, inertia=np.eye(3) * 1e-6
+    )
+    back = np.eye(4)
+    back[0, 3] = -block  # the slider's joint frame, from its tip frame
+    ahead = np.eye(4)
+    ahead[0, 3] = L
+    return Linkage(
+        [rod, slider],
+        parents=[0, 1],
+        point_wrenches=[PointWrench(2, [0.0, 0, 0, -P_cr, 0, 0])],
+        closed_loops=[
+            ClosedLoopJoint(Joint("P", axis=(1.0, 0.0, 0.0)), 2, 0, g_A=back, g_B=ahead)
+        ],
+    )
+
+
+def von_mises_truss(
+    angle: float = math.radians(15.0),
+    length: float = 0.3,
+    E: float = 1e6,
+    load_factor: float = 1.0,
+) -> tuple[Linkage, float]:
+    """Two extensible bars pinned to the ground and to each other: snap-through.
+
+    Each bar is a soft link of ``length`` (radius 5 mm, stretch mode only, order 0:
+    a linear axial spring, exact for a straight bar) on a revolute joint about z;
+    bar 1 rises from the origin at ``angle``, bar 2 from ``(2 a, 0)`` mirrored, with
+    ``a = length cos(angle)``; their tips are joined by a revolute closed-loop joint
+    about z. A downward force ``load_factor F_max`` acts on the apex (bar 1's
+    tip), ``F_max``
+    the analytic limit load: ``F(y) = -2 E A (l(y)/length - 1) y / l(y)`` with
+    ``l(y) = sqrt(a^2 + y^2)`` is the apex force at apex height y, maximal at
+    ``y* = sqrt(a^(4/3) length^(2/3) - a^2)``. With :func:`sorojax.continuation` the
+    load factor is F / F_max: the symmetric path folds at 1 and at -1.
+
+    Returns:
+        ``(linkage, F_max)``.
+    """
+    a = length * math.cos(angle)
+    EA = E * math.pi * ELASTICA_RADIUS**2
+    y_star = math.sqrt(a ** (4.0 / 3.0) * length ** (2.0 / 3.0) - a**2)
+    l_star = math.hypot(a, y_star)
+    F_max = -2.0 * EA * (l_star / length - 1.0) * y_star / l_star
+    z = (0.0, 0.0, 1.0)
+    bar = SoftLink(
+        Division(
+            length,
+            CircularSection(ELASTICA_RADIUS),
+            LegendreBasis((0, 0, 0, 1, 0, 0), 0),
+        ),
+        Material(E),
+        joint=Joint("R", axis=z),
+    )
+    place2 = rotation_z(math.pi - angle)
+    place2[0, 3] = 2 * a
+    return (
+        Linkage(
+            [bar, bar],
+            parents=[0, 0],
+            placements=[rotation_z(angle), place2],
+            point_wrenches=[PointWrench(1, [0.0, 0, 0, 0, -load_factor * F_max, 0])],
+            closed_loops=[ClosedLoopJoint(Joint("R", axis=z), 1, 2)],
+        ),
+        F_max,
+    )

@@ -41,9 +41,7 @@ def test_pendulum_stability_and_eigenvalue_are_analytic():
     assert not bool(up.stable) and int(up.n_negative) == 1
     assert abs(float(up.min_eigenvalue) + mgl) < 1e-9 * mgl, up.min_eigenvalue
     # the flag is data: no warning under throw=False with warn_unstable=False
-    quiet = sj.solve_statics(
-        lk, [math.pi / 2 - 0.05], throw=False, warn_unstable=False
-    )
+    quiet = sj.solve_statics(lk, [math.pi / 2 - 0.05], throw=False, warn_unstable=False)
     assert not bool(quiet.stable)
 
 
@@ -105,9 +103,7 @@ def _buckled_guess(lk, scale):
     k = 2 * math.pi / L_C
 
     def strain(s):
-        return jnp.stack(
-            [0.0, 0.0, a / 2 * k**2 * jnp.cos(k * s), 1.0, 0.0, 0.0]
-        )
+        return jnp.stack([0.0, 0.0, a / 2 * k**2 * jnp.cos(k * s), 1.0, 0.0, 0.0])
 
     return sj.strain_coordinates(lk, strain)
 

@@ -1,14 +1,5 @@
 """Static equilibrium via optimistix (Newton, load stepping, implicit adjoint)."""
 
-from ._solve import (
-    equilibrium_residual as equilibrium_residual,
-)
-from ._solve import (
-    solve_statics as solve_statics,
-)
-from ._stability import (
-    UnstableEquilibriumWarning as UnstableEquilibriumWarning,
-)
 from ._continuation import (
     CriticalPoint as CriticalPoint,
 )
@@ -17,4 +8,13 @@ from ._continuation import (
 )
 from ._continuation import (
     continuation as continuation,
+)
+from ._solve import (
+    equilibrium_residual as equilibrium_residual,
+)
+from ._solve import (
+    solve_statics as solve_statics,
+)
+from ._stability import (
+    UnstableEquilibriumWarning as UnstableEquilibriumWarning,
 )

@@ -1,4 +1,4 @@
-"""Equilibrium paths by pseudo-arclength continuation, with stability and critical points.
+"""Equilibrium paths by pseudo-arclength continuation: stability, folds, bifurcations.
 
 A *family* of linkages ``p -> linkage(p)`` (a load, an input, any physical parameter:
 whatever the function builds from ``p``) has equilibria ``f(x, p) = 0`` with
@@ -88,8 +88,8 @@ class EquilibriumPath:
         critical: the limit points and bifurcations found, in order (each also a
             point of the arrays, at its ``index``).
         status: ``"reached p1"``, ``"max_points"``, ``"left the range"`` (the path
-            came back past ``p0``) or ``"step too small: ..."`` (the corrector
-            failed at ``ds_min``).
+            came back past ``p0 - (p1 - p0)``) or ``"step too small: ..."`` (the
+            corrector failed at ``ds_min``).
         num_corrections: corrector runs (each a few Newton iterations), including
             rejected steps and the location of critical points.
     """
@@ -117,7 +117,12 @@ class EquilibriumPath:
 
 
 def _member(family, p, u):
-    """``(linkage, u)`` of the family at ``p`` (``u`` given, or from the family)."""
+    """``(linkage, u)`` of the family at ``p`` (``u`` given, or from the family).
+
+    A bare Linkage is its own family: ``p`` is then the load factor (below).
+    """
+    if isinstance(family, Linkage):
+        return family, u
     out = family(p)
     if isinstance(out, Linkage):
         return out, u
@@ -125,20 +130,30 @@ def _member(family, p, u):
     return linkage, u_p
 
 
-def _rows(family, u, t, z):
-    """Scaled equilibrium rows at ``z = (x, p)`` and the row scale of ``r_free``."""
+def _rows(family, u, q_p0, t, z):
+    """Scaled equilibrium rows at ``z = (x, p)`` and the row scale of ``r_free``.
+
+    For a Linkage ``family``, ``p`` is the statics' load factor: external loads and
+    actuation are scaled by ``p``, prescribed coordinates go from ``q_p0`` (p = 0)
+    to their inputs (p = 1).
+    """
     x, p = z[:-1], z[-1]
     linkage, u_p = _member(family, p, u)
     data = precompute(linkage)
     u_p = as_inputs(linkage, u_p, z.dtype)
     qi, ui = linkage.prescribed
-    q_p = u_p[ui] if len(qi) else None
-    f, _ = scaled_equilibrium(linkage, data, x, t, 1.0, u_p, q_p)
+    if isinstance(family, Linkage):
+        lam = p
+        q_p = q_p0 + p * (u_p[ui] - q_p0) if len(qi) else None
+    else:
+        lam = 1.0
+        q_p = u_p[ui] if len(qi) else None
+    f, _ = scaled_equilibrium(linkage, data, x, t, lam, u_p, q_p)
     return f, _row_scale(data.K)[free_coordinates(linkage)]
 
 
 @jit
-def _correct(family, u, t, z_pred, t_w, *, max_iter: int, tol: float):
+def _correct(family, u, q_p0, t, z_pred, t_w, *, max_iter: int, tol: float):
     """Newton on ``f(z) = 0``, ``t_w . (z - z_pred) = 0`` from ``z_pred``.
 
     Returns ``(z, converged, iterations, eigenvalues, vectors, n_manifold,
@@ -148,7 +163,7 @@ def _correct(family, u, t, z_pred, t_w, *, max_iter: int, tol: float):
     """
 
     def rows_and_aux(z_):
-        f, scale = _rows(family, u, t, z_)
+        f, scale = _rows(family, u, q_p0, t, z_)
         return f, (f, scale)
 
     def evaluate(z):
@@ -195,7 +210,7 @@ def _correct(family, u, t, z_pred, t_w, *, max_iter: int, tol: float):
 
 
 def continuation(
-    family: Callable[[ArrayLike], Linkage | tuple[Linkage, ArrayLike]],
+    family: Linkage | Callable[[ArrayLike], Linkage | tuple[Linkage, ArrayLike]],
     p0: float,
     p1: float,
     q0: ArrayLike | None = None,
@@ -231,13 +246,23 @@ def continuation(
         sorojax.viz.plot_equilibrium_path(path, lambda q: ...)
 
     Args:
-        family: ``p -> Linkage`` or ``p -> (Linkage, u)``, a pure JAX function of
-            the scalar ``p`` (built with ``jnp`` where ``p`` enters, so that
-            ``df/dp`` comes by autodiff); every member must share one structure.
-            One compile per family function object and structure.
-        p0: start value; the first point is ``solve_statics(family(p0), q0, u)``.
+        family: a :class:`~sorojax.Linkage`, whose *load factor* is then ``p``
+            (gravity, point and custom wrenches and actuation inputs times ``p``,
+            prescribed coordinates moved from their ``q0`` values at ``p = 0`` to
+            their inputs at ``p = 1``, as in :func:`~sorojax.solve_statics`'s load
+            stepping); or ``p -> Linkage`` or ``p -> (Linkage, u)``, a pure JAX
+            function of the scalar ``p`` (with ``jnp`` where ``p`` enters, so that
+            ``df/dp`` comes by autodiff) for any parameter, every member sharing
+            one structure. The compiled corrector is reused for linkages of the
+            same structure, and for the same function object (a new lambda per
+            call compiles again).
+        p0: start value. For a Linkage the first point is Newton's method at load
+            factor ``p0`` from ``q0`` (give a nearby ``q0`` if ``p0 != 0``); for a
+            function, ``solve_statics(family(p0), q0, u)`` (load stepping).
         p1: end value (the path stops when it passes ``p1``, with a last point at
-            exactly ``p1``).
+            exactly ``p1``). Past a limit point the parameter runs back; the path
+            may go beyond ``p0`` (a snap-through passes through negative loads)
+            down to ``p0 - (p1 - p0)``, where it stops.
         q0: initial guess at ``p0`` ``(n_dof,)`` (default zeros).
         u: actuation inputs (used when ``family`` returns a bare Linkage).
         t: time at which time-dependent loads are evaluated [s].
@@ -261,17 +286,30 @@ def continuation(
 
     Raises:
         ValueError: ``p0 == p1``, ``branch_direction`` not +-1, a bad ``q0``.
-        RuntimeError: the start ``solve_statics`` fails.
+        RuntimeError: the start point does not converge.
     """
     if p0 == p1:
         raise ValueError(f"p0 = p1 = {p0!r}: give two different parameter values.")
     if branch_direction not in (1, -1):
         raise ValueError(f"branch_direction = {branch_direction!r}: give +1 or -1.")
+    load_factor = isinstance(family, Linkage)
     lk0, u0 = _member(family, jnp.asarray(p0, dtype=float), u)
-    sol = solve_statics(lk0, q0, u0, t=t, warn_unstable=False)
+    n = lk0.n_dof
+    q0 = jnp.zeros(n) if q0 is None else jnp.asarray(q0, dtype=float)
+    if q0.shape != (n,):
+        raise ValueError(f"q0 has shape {q0.shape}; this linkage needs ({n},).")
+    qi, ui = lk0.prescribed
+    q_p0 = q0[qi]
+    u_full = np.asarray(as_inputs(lk0, u0, q0.dtype))
     free = free_coordinates(lk0)
-    nf, n_c, n = len(free), lk0.n_constraints, lk0.n_dof
-    q_fixed = np.asarray(sol.q)  # prescribed coordinates stay these
+    nf, n_c = len(free), lk0.n_constraints
+    if load_factor:  # the start: Newton at the load factor p0 from q0
+        q_fixed = np.asarray(q0)
+        x0 = np.concatenate([q_fixed[free], np.zeros(n_c)])
+    else:  # the start: solve_statics (load stepping) at p0
+        sol = solve_statics(lk0, q0, u0, t=t, warn_unstable=False)
+        q_fixed = np.asarray(sol.q)  # prescribed coordinates stay these
+        x0 = np.concatenate([q_fixed[free], np.asarray(sol.lam)])
     span = float(p1) - float(p0)
     direction = 1.0 if span > 0 else -1.0
     w = np.concatenate([np.ones(nf), np.zeros(n_c), [1.0 / span**2]])
@@ -284,6 +322,7 @@ def continuation(
         out = _correct(
             family,
             u_arr,
+            q_p0,
             tt,
             jnp.asarray(z_pred),
             jnp.asarray(t_w),
@@ -310,15 +349,20 @@ def continuation(
     def q_of(z):
         q = q_fixed.copy()
         q[free] = z[:nf]
+        if load_factor and len(qi):
+            q[qi] = np.asarray(q_p0) + z[-1] * (u_full[ui] - np.asarray(q_p0))
         return q
 
     # the start point and its tangent towards p1
-    z0 = np.concatenate([np.asarray(sol.q)[free], np.asarray(sol.lam), [p0]])
+    z0 = np.concatenate([x0, [p0]])
     e_p = np.zeros(nf + n_c + 1)
     e_p[-1] = direction / abs(span)
     cur = correct(z0, e_p)
     if not cur["ok"]:
-        raise RuntimeError("continuation: the start point did not converge.")
+        raise RuntimeError(
+            f"continuation: Newton's method did not converge at the start p0 = {p0} "
+            "from q0: give a q0 closer to that equilibrium (e.g. from solve_statics)."
+        )
     points = [(cur, 0)]
     critical: list[CriticalPoint] = []
     branch = 0
@@ -387,7 +431,8 @@ def continuation(
         turn = float(new["tan"] @ (w * pt_prev["tan"])) if new["ok"] else -1.0
         if not new["ok"] or new["it"] > 6 or turn < 0.9:
             if step <= ds_min:
-                status = f"step too small: the corrector failed at p = {pt_prev['z'][-1]:.6g}"
+                p_at = float(pt_prev["z"][-1])
+                status = f"step too small: the corrector failed at p = {p_at:.6g}"
                 break
             step = max(step / 2, ds_min)
             continue
@@ -433,7 +478,7 @@ def continuation(
                 points[-1] = (end, branch)
             status = "reached p1"
             break
-        if (p_new - float(p0)) * direction < -1e-12 * abs(span):
+        if (p_new - float(p0)) * direction < -abs(span):
             status = "left the range"
             break
         if new["it"] <= 3:

@@ -324,9 +324,7 @@ def _newton(
         # can leave the basin of the equilibrium near the guess (a slightly buckled
         # guess of a clamped-clamped rod diverged); near a root steps are far below.
         dx = sol.value
-        dx = dx / jnp.maximum(
-            jnp.max(jnp.abs(dx[:n_eq]), initial=0.0) / max_step, 1.0
-        )
+        dx = dx / jnp.maximum(jnp.max(jnp.abs(dx[:n_eq]), initial=0.0) / max_step, 1.0)
         solved = (sol.result == lx.RESULTS.successful) & jnp.all(jnp.isfinite(dx))
         dx_small = jnp.max(jnp.abs(dx) / (tol_a + tol_r * jnp.abs(x)), initial=0.0) <= 1
         f_small = jnp.max(jnp.abs(f), initial=0.0) <= tol_a

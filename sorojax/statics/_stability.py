@@ -31,6 +31,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array
 
+
 class UnstableEquilibriumWarning(RuntimeWarning):
     """A static solve converged, but to an unstable equilibrium."""
 

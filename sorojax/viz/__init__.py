@@ -4,7 +4,8 @@
 ``plot_reference`` (alias ``plotq0``) draws q = 0 with the coordinate frames;
 ``animate`` (the manual's ``plotqqd``) writes a video of a trajectory and
 ``plot_time_series`` plots its coordinates, tip position or energies against time;
-``plot_cables`` draws the cable routes over a configuration.
+``plot_cables`` draws the cable routes over a configuration;
+``plot_equilibrium_path`` draws a load-response curve of a continuation path.
 """
 
 from ._animate import (
@@ -18,6 +19,9 @@ from ._cables import (
 )
 from ._cables import (
     plot_cables as plot_cables,
+)
+from ._path import (
+    plot_equilibrium_path as plot_equilibrium_path,
 )
 from ._plot import (
     plot_configuration as plot_configuration,
