@@ -134,8 +134,12 @@ from .model import (
 from .model._precompute import precompute as precompute
 from .statics import CriticalPoint as CriticalPoint
 from .statics import EquilibriumPath as EquilibriumPath
+from .statics import ModelChoice as ModelChoice
 from .statics import UnstableEquilibriumWarning as UnstableEquilibriumWarning
+from .statics import choose_model as choose_model
 from .statics import continuation as continuation
+from .statics import discretization_error as discretization_error
 from .statics import solve_statics as solve_statics
+from .statics import with_orders as with_orders
 
 __version__ = "0.1.0"

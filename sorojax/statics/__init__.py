@@ -1,5 +1,20 @@
 """Static equilibrium via optimistix (Newton, load stepping, implicit adjoint)."""
 
+from ._adequacy import (
+    DiscretizationEstimate as DiscretizationEstimate,
+)
+from ._adequacy import (
+    ModelChoice as ModelChoice,
+)
+from ._adequacy import (
+    choose_model as choose_model,
+)
+from ._adequacy import (
+    discretization_error as discretization_error,
+)
+from ._adequacy import (
+    with_orders as with_orders,
+)
 from ._continuation import (
     CriticalPoint as CriticalPoint,
 )
