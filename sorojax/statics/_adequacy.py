@@ -276,13 +276,20 @@ class DiscretizationEstimate:
     """Discretisation error indicators of one solution.
 
     Attributes:
-        error: QoI change (relative to the reference length) when the highest
-            coefficient of every active mode of every division is dropped.
+        error: the estimate, ``max(coefficients, points)``.
+        coefficients: ``e1 * min(1, e1 / e2)``, with ``e1`` (``e2``) the QoI
+            change (relative to the reference length) when the highest (two
+            highest) coefficients of every active mode are dropped: the
+            geometric-decay extrapolation one order up.
+        points: QoI change when the same q is integrated with twice the points
+            (the kinematics' integration error, which coefficients cannot see).
         per_mode: ``{(link, division, mode name): QoI change}`` when only that
             mode's highest coefficient is dropped.
     """
 
     error: float
+    coefficients: float
+    points: float
     per_mode: dict
 
 
@@ -297,10 +304,14 @@ def discretization_error(
 
     Under spectral (geometric) decay of the Legendre coefficients, dropping each
     mode's highest coefficient changes the QoI by about the error of the next
-    smaller model, a (usually generous) upper estimate of this one's. A mode whose
-    highest coefficient does not move the QoI is resolved. The estimate says
-    nothing about the points' integration error (raise ``n_gauss`` to check it) and
-    is an indicator, not a bound.
+    smaller model (``e1``), dropping the two highest by that of the one below
+    (``e2``); this model's error is extrapolated as ``e1 * e1 / e2``. A mode whose
+    highest coefficient does not move the QoI is resolved. The points'
+    integration error is estimated apart, by integrating the same q with twice
+    the points (one more compile of the kinematics). An indicator, not a bound:
+    on a planar cantilever with a tip force (orders 1-8 against an order-14
+    reference) it was 0.69-5.8x the true error (30-54x at orders 1-2 with ``e1``
+    alone; 0.02-0.2x at orders 5-8 without the points term).
 
     Args:
         linkage: the model (soft divisions with LegendreBasis).
@@ -323,17 +334,37 @@ def discretization_error(
                 qt[index[(i, k, m, o[m])]] = 0.0
                 keys.append((i, k, MODE_NAMES[m]))
                 qs.append(qt)
-    q_all = q.copy()
+    q_all, q_two = q.copy(), q.copy()  # top coefficient dropped, top two dropped
     for (i, k), o in orders.items():
         for m in range(6):
             if o[m] >= 0:
                 q_all[index[(i, k, m, o[m])]] = 0.0
+                q_two[index[(i, k, m, o[m])]] = 0.0
+                if o[m] >= 1:
+                    q_two[index[(i, k, m, o[m] - 1)]] = 0.0
     errs = _qoi_error(
-        linkage, np.asarray(qs + [q_all]), jnp.asarray(q), length, quantity
+        linkage, np.asarray(qs + [q_all, q_two]), jnp.asarray(q), length, quantity
     )
+    # the model one order down is off by e1, two down by e2: under geometric decay
+    # this one is off by about e1 * (e1 / e2)
+    e1, e2 = float(errs[-2]), float(errs[-1])
+    coefficients = e1 * min(1.0, e1 / e2) if e2 > 0 else e1
+    finer = with_orders(
+        linkage,
+        orders,
+        {(i, k): 2 * linkage.links[i - 1].divisions[k].n_gauss for i, k in orders},
+    )
+    if quantity is None:
+        points = _kinematic_difference(linkage, q, finer, q, length)
+    else:
+        a = np.asarray(quantity(linkage, jnp.asarray(q)))
+        b = np.asarray(quantity(finer, jnp.asarray(q)))
+        points = float(np.max(np.abs(a - b)) / length)
     return DiscretizationEstimate(
-        error=float(errs[-1]),
-        per_mode={key: float(e) for key, e in zip(keys, errs[:-1], strict=True)},
+        error=max(coefficients, points),
+        coefficients=coefficients,
+        points=points,
+        per_mode={key: float(e) for key, e in zip(keys, errs[:-2], strict=True)},
     )
 
 

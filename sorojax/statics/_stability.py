@@ -18,13 +18,14 @@ relative to each coordinate's own stiffness (a straight elastic rod without load
 eigenvalues near 1), and their signs (the inertia) are those of ``Z^T H Z`` by
 Sylvester's law.
 
-Non-conservative loads (follower wrenches, custom wrenches or actuation that do not
-derive from a potential) make ``H`` non-symmetric. The count is then taken on its
-symmetric part: a positive definite symmetric part excludes divergence (a real
-eigenvalue of ``H`` through zero), but static tests can never see flutter (complex
-eigenvalues of the linearised dynamics, e.g. Beck's column): for follower loads
-"stable" means "no divergence found", and dynamic stability needs the eigenvalues of
-the linearised equations of motion.
+Non-conservative loads (follower wrenches, a dead moment in 3D, custom wrenches or
+actuation that do not derive from a potential) make ``H`` non-symmetric. The count
+is then taken on the real parts of ``H``'s own eigenvalues (on CPU; other backends
+use the symmetric part, which can report instability where there is none): a real
+eigenvalue through zero is divergence, but static tests can never see flutter
+(complex eigenvalues of the linearised dynamics, e.g. Beck's column): for such
+loads "stable" means "no divergence found", and dynamic stability needs the
+eigenvalues of the linearised equations of motion.
 """
 
 import jax
@@ -65,10 +66,9 @@ def reduced_tangent_spectrum(J, n_free: int, scale) -> tuple[Array, Array, Array
     d = jnp.sqrt(scale)
     # diag(d) H diag(d) with H = diag(1/scale) J_qq: the scaled second variation
     Hs = J[:n_free, :n_free] * (d[None, :] / d[:, None])
-    Hs = 0.5 * (Hs + Hs.T)
     n_c = J.shape[0] - n_free
     if n_c == 0:
-        lam, V = jnp.linalg.eigh(Hs)
+        lam, V = _eigen(Hs)
         return lam, d[:, None] * V, jnp.asarray(n_free)
     A = J[n_free:, :n_free] * d[None, :]  # constraint Jacobian in y = q / d
     _, s, vt = jnp.linalg.svd(A, full_matrices=True)
@@ -84,10 +84,34 @@ def reduced_tangent_spectrum(J, n_free: int, scale) -> tuple[Array, Array, Array
     Hr = jnp.where(keep[:, None] & keep[None, :], Hr, 0.0) + jnp.diag(
         jnp.where(keep, 0.0, shift)
     )
-    lam, W = jnp.linalg.eigh(Hr)
+    lam, W = _eigen(Hr)
     idx = jnp.arange(n_free)
     lam = jnp.where(idx < n_manifold, lam, jnp.inf)
     return lam, d[:, None] * (vt.T @ W), n_manifold
+
+
+def _eigen(H) -> tuple[Array, Array]:
+    """Ascending eigenvalues of ``H`` (real parts) and the symmetric part's vectors.
+
+    Conservative loads make ``H`` symmetric (to round-off): ``eigh``. Otherwise
+    (follower loads; a dead moment in 3D) the symmetric part's eigenvalues can be
+    negative where no eigenvalue of ``H`` is (a rod rolled into a circle by a
+    follower end moment: -0.33 against real parts >= 0.58), so the real parts of
+    ``H``'s own eigenvalues are used: LAPACK's ``geev``, which JAX provides on CPU
+    only; on other backends the symmetric part's (documented limitation).
+    """
+    sym = 0.5 * (H + H.T)
+    lam_s, V = jnp.linalg.eigh(sym)
+    if jax.default_backend() != "cpu":
+        return lam_s, V
+    size = jnp.max(jnp.abs(H), initial=0.0)
+    asym = jnp.max(jnp.abs(H - H.T), initial=0.0) > 1e-8 * jnp.maximum(size, 1e-300)
+
+    def general(H_):
+        return jnp.sort(jnp.real(jnp.linalg.eig(H_)[0]))
+
+    lam = jax.lax.cond(asym, general, lambda H_: lam_s, H)
+    return lam, V
 
 
 def stability_summary(eigenvalues, n_manifold) -> tuple[Array, Array, Array]:
