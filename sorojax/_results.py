@@ -46,7 +46,8 @@ class StaticsSolution(eqx.Module):
         constraint_rank: numerical rank of the constraint Jacobian with respect to
             the free (not prescribed) coordinates (less than
             ``Linkage.n_constraints`` when rows are redundant, e.g. a planar loop).
-        stable: whether the equilibrium is stable: no eigenvalue of the tangent
+        stable: whether the solve converged to a stable equilibrium (False when
+            it failed): no eigenvalue of the tangent
             stiffness restricted to the constraint manifold (prescribed coordinates
             held, with the constraint-curvature term of the multipliers) is
             negative (:mod:`sorojax.statics._stability`; eigenvalues within 1e-9 of

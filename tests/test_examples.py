@@ -227,3 +227,43 @@ def test_manual_hybrid_statics_and_dynamics(tmp_path):
     err = np.asarray(jax.vmap(lambda qq: sj.closure_errors(lk, qq))(traj.q))
     assert np.abs(err).max() < 1e-6, f"closure error {np.abs(err).max()}"
     assert (tmp_path / "manual_hybrid.png").stat().st_size > 10_000
+
+
+def test_snap_through_finds_folds_bifurcation_and_the_sweep_jump(tmp_path):
+    """examples/snap_through.py at its defaults (16 sweep loads, elastica order 8).
+
+    References: (1) the truss folds at F / F_max = +1 and -1, the closed form's limit
+    loads, at apex heights +-y* (scenes.von_mises_truss: the bars are exact linear
+    springs, so only the secant location limits it; 1e-6 is slack, measured 1e-14).
+    (2) The plain warm-started sweep follows the stable branch up to the fold (apex
+    above y*, flagged stable) and past it has no nearby equilibrium: every point
+    beyond F_max lies at least 2 cm below the fold's apex, and the example's point
+    that it lands on *unstable* equilibria, flagged (measured: 1.1-1.5 F_max, the
+    apex past the far pin), holds. (3) The elastica bifurcates at P_cr within 1e-3
+    and its buckled branch lies on the elliptic-integral curve within 1e-4 relative
+    (measured 1.5e-5 at order 8, as in tests/test_continuation.py). A second run
+    must refuse to overwrite the PNG without --overwrite.
+    """
+    ex = _load("snap_through")
+    res = ex.main(["--out", str(tmp_path)])
+    p_fold, m_fold = res["folds"]
+    assert abs(p_fold - 1) < 1e-6 and abs(m_fold + 1) < 1e-6, res["folds"]
+    y_star = res["fold_apex_height_analytic"]
+    y0, y1 = res["fold_apex_heights"]
+    assert abs(y0 - y_star) < 1e-6 and abs(y1 + y_star) < 1e-6, (y0, y1, y_star)
+    loads, y = res["sweep_loads"], res["sweep_apex_heights"]
+    conv, stable = res["sweep_converged"], res["sweep_stable"]
+    below, beyond = loads < 1 - 1e-9, loads > 1 + 1e-9
+    assert conv[below].all() and stable[below].all(), "sweep below the fold"
+    assert np.all(y[below] > y_star), f"apex below the fold {y[below]}"
+    assert np.all(y[beyond] < y_star - 0.02), f"apex beyond the fold {y[beyond]}"
+    assert (conv & ~stable)[beyond].any(), "the sweep's unstable landing is flagged"
+    assert abs(res["bifurcation"] - 1) < 1e-3, res["bifurcation"]
+    err = res["elastica_max_relative_error"]
+    assert err < 1e-4, f"elastica P/P_cr vs elliptic integrals: {err:.2e}"
+    png = tmp_path / "snap_through.png"
+    size = png.stat().st_size
+    assert size > 10_000
+    with pytest.raises(SystemExit, match="overwrite"):
+        ex.main(["--out", str(tmp_path)])
+    assert png.stat().st_size == size

@@ -156,8 +156,9 @@ def _rows(family, u, q_p0, t, z):
 def _correct(family, u, q_p0, t, z_pred, t_w, *, max_iter: int, tol: float):
     """Newton on ``f(z) = 0``, ``t_w . (z - z_pred) = 0`` from ``z_pred``.
 
-    Returns ``(z, converged, iterations, eigenvalues, vectors, n_manifold,
-    tangent, J)``: the spectrum of the reduced tangent stiffness, the tangent
+    Returns ``(z, converged, iterations, eigenvalues, vectors, (stable,
+    n_negative, min_eigenvalue), tangent, J)``: the spectrum of the reduced tangent
+    stiffness and its summary, the tangent
     (``tangent . t_w = 1``) and the Jacobian ``df/dz``, all from the last
     evaluation.
     """
@@ -206,7 +207,8 @@ def _correct(family, u, q_p0, t, z_pred, t_w, *, max_iter: int, tol: float):
     lam, vecs, n_man = reduced_tangent_spectrum(J[:, :-1], nf, scale)
     rhs = jnp.zeros(JG.shape[0], z.dtype).at[-1].set(1.0)
     tangent = jnp.linalg.lstsq(JG, rhs)[0]
-    return z, conv, it, lam, vecs, n_man, tangent, J
+    summary = stability_summary(lam, n_man)
+    return z, conv, it, lam, vecs, summary, tangent, J
 
 
 def continuation(
@@ -329,10 +331,9 @@ def continuation(
             max_iter=max_iter,
             tol=tol,
         )
-        z, conv, it, lam, vecs, n_man, tan, J = (np.asarray(o) for o in out)
+        z, conv, it, lam, vecs, summary, tan, J = jax.device_get(out)
+        stable, n_neg, lam_min = summary
         tan = tan / np.sqrt(tan @ (w * tan))
-        lam_j = jnp.asarray(lam)
-        stable, n_neg, lam_min = stability_summary(lam_j, jnp.asarray(n_man))
         return dict(
             z=z,
             ok=bool(conv),
