@@ -16,10 +16,11 @@ forward kinematics alone (one vmapped call over all candidates):
   upper estimate of this one's under spectral decay.
 - :func:`choose_model` solves a *reference* model (every mode at a high order,
   many points), picks per division and per mode the smallest orders (modes off
-  where they are not needed) whose truncation keeps the QoI within a fraction of
-  the tolerance (greedy, best error reduction per coordinate), then *verifies* the
-  choice with one solve of the chosen model against the reference, tightening and
-  repeating if needed. Its error estimate is that verified difference.
+  where they are not needed) whose Galerkin solution of the equilibrium
+  linearised at the reference keeps the QoI within a fraction of the tolerance
+  (greedy, best error reduction per coordinate), then *verifies* the choice with
+  one solve of the chosen model against the reference, tightening and repeating
+  if needed. Its error estimate is that verified difference.
 
 Only soft divisions with a :class:`~sorojax.LegendreBasis` are supported (the
 monomial and custom bases are not nested orthogonal families).
@@ -422,13 +423,19 @@ def choose_model(
        six) at ``reference_order`` and ``reference_points`` (default
        ``4 reference_order + 8``) points.
     2. Greedily raise orders (from every mode off), each time the
-       (division, mode) whose next one or two orders cut the truncated reference
-       solution's QoI error most per added coordinate, until that error is below
-       ``safety * tol``. All candidates of a round are one vmapped forward
-       kinematics call: no solve.
-    3. Solve the chosen model (from the truncated reference solution) and measure
-       its QoI distance from the reference. Above ``tol``: lower the target by
-       the excess and continue from step 2 (at most ``max_rounds`` solves).
+       (division, mode) whose next one or two orders cut the QoI error most per
+       added coordinate, until that error is below ``safety * tol``. A
+       candidate's error is that of its Galerkin solution of the equilibrium
+       linearised at the reference solution (a small least-squares solve with the
+       reference's tangent; exact up to second order in the error), its QoI from
+       the reference's kinematics; all candidates of a round are one vmapped
+       forward kinematics call: no nonlinear solve.
+    3. Double the chosen model's points until its kinematics of that solution
+       agree with the reference's within the target.
+    4. Solve the chosen model (from the reference solution, truncated) and
+       measure its QoI distance from the reference. Above ``tol``: lower the
+       target by the excess and continue from step 2 (at most ``max_rounds``
+       solves).
 
     The result's ``error_estimate`` is the verified distance from the reference,
     which is the true error up to the reference's own (``reference_error``,
