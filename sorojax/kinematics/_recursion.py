@@ -1,4 +1,4 @@
-"""Forward kinematics and body Jacobians by the 4th-order Magnus / Zanna recursion.
+"""Forward kinematics and body Jacobians by the Magnus / Zanna recursion.
 
 DESIGN.md section 3 (Renda et al. 2020; Mathew et al. 2022). Between consecutive
 significant points X_a -> X_a + h with xi_1, xi_2 at the Zanna points
@@ -7,6 +7,14 @@ X_a + h (1/2 -+ sqrt(3)/6):
     Omega  = h/2 (xi_1 + xi_2) + sqrt(3) h^2/12 ad(xi_1) xi_2
     dOmega = h/2 (Phi_1 + Phi_2) + sqrt(3) h^2/12 (ad(xi_1) Phi_2 - ad(xi_2) Phi_1)
     g_{a+1} = g_a exp(Omega),  J_{a+1} = Ad(exp(Omega))^-1 (J_a + T(Omega) dOmega).
+
+That is the 4th-order step. A linkage with a division of basis order >= 4 uses the
+6th-order step instead (3 Gauss nodes, :func:`sorojax.kinematics._step.magnus6`,
+dOmega applied by :func:`~sorojax.kinematics._step.magnus6_apply` and its transpose),
+because the 4th-order one
+integrates the Jacobian columns of such modes with an error that becomes the floor
+of the statics (issue 16 (c)); the choice is static (``data.steps.order``) and the
+rest of the recursion is the same.
 
 A lumped joint is the same step with Omega = Phi_j q_j, and a constant transform
 (placement, g_i, g_f) a step with a fixed exp(Omega) and dOmega = 0. Every twist and
@@ -30,16 +38,13 @@ from jaxtyping import Array, Float
 
 from ..lie import Ad, Ad_inv, ad
 from ..model._precompute import LinkageData
-from ._step import exp_and_tangent
-
-
-def _ad_apply(a, b):
-    """``ad(a) b`` for stacks of twists (angular first), by cross products."""
-    w, v = a[..., :3], a[..., 3:]
-    x, y = b[..., :3], b[..., 3:]
-    return jnp.concatenate(
-        [jnp.cross(w, x), jnp.cross(v, x) + jnp.cross(w, y)], axis=-1
-    )
+from ._step import ad_apply as _ad_apply
+from ._step import (
+    exp_and_tangent,
+    magnus6,
+    magnus6_apply,
+    magnus6_apply_transpose,
+)
 
 
 def _Ad(R, p):
@@ -56,18 +61,20 @@ class Steps(NamedTuple):
     """Every Magnus step of the linkage (flat, in :class:`StepData` order).
 
     ``R, p, T``: exp(Omega) and the tangent operator; ``xi1, xi2``: strains at the
-    Zanna points; with velocities also ``Td`` (dT/dt), ``Od`` (dOmega/dt) and
-    ``Odd`` (its velocity-product part, qdd = 0).
+    Zanna points (4th-order steps); ``xi``: strains at the 3 nodes
+    ``(n_steps, 3, 6)`` (6th-order steps); with velocities also ``Td`` (dT/dt),
+    ``Od`` (dOmega/dt) and ``Odd`` (its velocity-product part, qdd = 0).
     """
 
     R: Array
     p: Array
     T: Array
-    xi1: Array
-    xi2: Array
+    xi1: Array | None
+    xi2: Array | None
     Td: Array | None = None
     Od: Array | None = None
     Odd: Array | None = None
+    xi: Array | None = None
 
 
 def steps(data: LinkageData, q, qd=None) -> Steps:
@@ -75,10 +82,14 @@ def steps(data: LinkageData, q, qd=None) -> Steps:
 
     ``Omega = h/2 (xi_1 + xi_2) + c ad(xi_1) xi_2`` (``c = 0`` for joints) for all
     steps at once, then one vectorised :func:`exp_and_tangent` (with its forward-mode
-    rate when ``qd`` is given).
+    rate when ``qd`` is given). 6th-order steps: :func:`magnus6`, the rates by
+    forward mode (``Od = dOmega[xid]``, ``Odd = d^2 Omega[xid, xid]``, as the
+    4th-order ``Od`` and ``Odd`` are).
     """
     st = data.steps
     xi = jnp.einsum("szan,n->sza", st.Phi_z, q) + st.xi_ref_z
+    if st.order == 6:
+        return _steps6(st, xi, qd)
     xi1, xi2 = xi[:, 0], xi[:, 1]
     h, c = st.h[:, None], st.c[:, None]
     Omega = 0.5 * h * (xi1 + xi2) + c * _ad_apply(xi1, xi2)
@@ -95,10 +106,31 @@ def steps(data: LinkageData, q, qd=None) -> Steps:
     return Steps(R, p, T, xi1, xi2, Td, Od, Odd)
 
 
+def _steps6(st, xi, qd) -> Steps:
+    """:func:`steps` for 6th-order steps, from the strains ``xi`` at the nodes."""
+    Omega = magnus6(xi, st.h)
+    if qd is None:
+        R, p, T = jax.vmap(exp_and_tangent)(Omega)
+        return Steps(R, p, T, None, None, xi=xi)
+    xid = jnp.einsum("szan,n->sza", st.Phi_z, qd)
+
+    def rates(x):
+        return jax.jvp(lambda y: magnus6(y, st.h), (x,), (xid,))[1]
+
+    Od, Odd = jax.jvp(rates, (xi,), (xid,))
+    (R, p, T), (_, _, Td) = jax.vmap(
+        lambda O, dO: jax.jvp(exp_and_tangent, (O,), (dO,))
+    )(Omega, Od)
+    return Steps(R, p, T, None, None, Td, Od, Odd, xi)
+
+
 def step_jacobians(data: LinkageData, k: Steps, V) -> Array:
     """``dOmega V`` of every step: ``(n_steps, 6, cols)`` (``V`` None: identity)."""
     st = data.steps
     P = st.Phi_z if V is None else jnp.einsum("szan,nk->szak", st.Phi_z, V)
+    if st.order == 6:
+        dO = magnus6_apply(k.xi, st.h, jnp.swapaxes(P, -1, -2))
+        return jnp.swapaxes(dO, -1, -2)
     P1, P2 = P[:, 0], P[:, 1]
     h, c = st.h[:, None, None], st.c[:, None, None]
     ad1, ad2 = jax.vmap(ad)(k.xi1), jax.vmap(ad)(k.xi2)
@@ -119,9 +151,13 @@ def step_jacobians_transpose(data: LinkageData, k: Steps, z) -> Array:
     ``sum_s P1^T (h/2 z - c ad(xi_2)^T z) + P2^T (h/2 z + c ad(xi_1)^T z)``: one
     product with the constant strain bases and no ``(n_steps, 6, n_dof)`` array (the
     contraction of that array, fused with its making, cost most of a residual under
-    ``vmap`` on CPU).
+    ``vmap`` on CPU). 6th-order steps likewise, with the nodes' covectors from
+    :func:`magnus6_apply_transpose`.
     """
     st = data.steps
+    if st.order == 6:
+        Z = magnus6_apply_transpose(k.xi, st.h, z)
+        return jnp.einsum("szan,sza->n", st.Phi_z, Z)
     h, c = st.h[:, None], st.c[:, None]
     Z1 = 0.5 * h * z - c * _ad_transpose_apply(k.xi2, z)
     Z2 = 0.5 * h * z + c * _ad_transpose_apply(k.xi1, z)

@@ -54,8 +54,9 @@ class Division(eqx.Module):
         section: cross-section (profile of X1 in [0, 1] over this division).
         basis: strain basis (active modes and polynomial orders).
         n_gauss: number of interior Gauss-Legendre points (the end points are added
-            with zero weight); they are also the Magnus integration nodes, so they
-            set the kinematic accuracy (4th order in their spacing). Default
+            with zero weight); they bound the Magnus steps, so they set the
+            kinematic accuracy (4th order in their spacing; 6th order in linkages
+            with a basis of order >= 4). Default
             ``max(8, 2 max_order + 4)``.
         xi_ref: reference (stress-free) strain, a 6-vector or a function of X1
             returning one; default the straight rod (0, 0, 0, 1, 0, 0).

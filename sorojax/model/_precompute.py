@@ -1,10 +1,11 @@
 """Derived arrays of a linkage, computed once per solve from its primary parameters.
 
 :func:`precompute` evaluates bases, reference strains and section matrices at every
-significant and Zanna point, the rigid inertias, and the constant K and D. Solvers call
-it once, outside their iteration loops, and pass the result to the kernels; because it
-is recomputed from the primary parameters on every call, a changed parameter is never
-stale and ``jax.grad`` reaches E, radii, lengths and masses.
+significant point and Magnus node, the rigid inertias, and the constant K and D.
+Solvers call it once, outside their iteration loops, and pass the result to the
+kernels; because it is recomputed from the primary parameters on every call, a
+changed parameter is never stale and ``jax.grad`` reaches E, radii, lengths and
+masses.
 """
 
 import math
@@ -20,8 +21,35 @@ from ._link import RigidLink, SoftLink
 from ._linkage import Linkage
 from ._section import section_matrices
 
-_ZANNA = (0.5 - math.sqrt(3.0) / 6.0, 0.5 + math.sqrt(3.0) / 6.0)
-_C = math.sqrt(3.0) / 12.0  # Magnus commutator weight: c = _C h^2
+# Magnus nodes on a step, by the order of the step (DESIGN.md section 3): the 2-point
+# Gauss-Legendre (Zanna) nodes of the 4th-order step and the 3-point nodes of the
+# 6th-order one (:mod:`sorojax.kinematics._recursion`).
+_NODES = {
+    4: (0.5 - math.sqrt(3.0) / 6.0, 0.5 + math.sqrt(3.0) / 6.0),
+    6: (0.5 - math.sqrt(15.0) / 10.0, 0.5, 0.5 + math.sqrt(15.0) / 10.0),
+}
+_C = math.sqrt(3.0) / 12.0  # 4th-order Magnus commutator weight: c = _C h^2
+# Basis order from which a division's modes need the 6th-order step: the 4th-order
+# step integrates a mode's Jacobian column with the 2-point Gauss rule (exact up to
+# cubics), so from quartic modes on J^T W gains spurious components of order
+# h^4 |d^4 Phi / dX^4| (the full circle under an end moment ended 3e-5 L from the
+# exact tip at order 4, 3e-6 L at order 8; issue 16 (c)).
+HIGH_ORDER = 4
+
+
+def magnus_order(linkage: Linkage) -> int:
+    """Order of the Magnus steps of ``linkage``: 4 or 6 (static).
+
+    6 if any soft division's basis has order >= :data:`HIGH_ORDER`, else 4. One
+    order per linkage keeps every step in one batch; the 4th-order step (2 nodes,
+    one commutator) stays the cost of low-order models.
+    """
+    for link in linkage.links:
+        if isinstance(link, SoftLink):
+            for div in link.divisions:
+                if div.basis.n_dof and div.basis.max_order >= HIGH_ORDER:
+                    return 6
+    return 4
 
 
 class DivisionData(eqx.Module):
@@ -29,8 +57,9 @@ class DivisionData(eqx.Module):
 
     Attributes:
         h: (n_steps,) step lengths between consecutive points [m].
-        Phi_z: (n_steps, 2, 6, n) basis at the two Zanna points of each step.
-        xi_ref_z: (n_steps, 2, 6) reference strain at the Zanna points.
+        Phi_z: (n_steps, n_nodes, 6, n) basis at the Magnus nodes of each step (2
+            Zanna points for 4th-order steps, 3 Gauss points for 6th-order ones).
+        xi_ref_z: (n_steps, n_nodes, 6) reference strain at the Magnus nodes.
         Phi: (n_pts, 6, n) basis at the division's points.
         xi_ref: (n_pts, 6) reference strain at the points.
         Sigma: (n_pts, 6, 6) stiffness at the points.
@@ -40,8 +69,8 @@ class DivisionData(eqx.Module):
     offset: int = eqx.field(static=True)
     n_dof: int = eqx.field(static=True)
     h: Float[Array, " n_steps"]
-    Phi_z: Float[Array, "n_steps 2 6 n"]
-    xi_ref_z: Float[Array, "n_steps 2 6"]
+    Phi_z: Float[Array, "n_steps n_nodes 6 n"]
+    xi_ref_z: Float[Array, "n_steps n_nodes 6"]
     Phi: Float[Array, "n_pts 6 n"]
     xi_ref: Float[Array, "n_pts 6"]
     Sigma: Float[Array, "n_pts 6 6"]
@@ -73,25 +102,30 @@ class StepData(eqx.Module):
     """Every Magnus step of the linkage in one batch, full column width.
 
     In link order: a link's joint (if it has coordinates: one step with ``h = 1``,
-    ``c = 0`` and both Zanna bases the joint basis, so that ``Omega = Phi_j q_j``
-    exactly), then the steps of its divisions. Batching them keeps the traced
-    program's size independent of the number of divisions and joints.
+    ``c = 0`` and every node's basis the joint basis, so that ``Omega = Phi_j q_j``
+    exactly, at either order), then the steps of its divisions. Batching them keeps
+    the traced program's size independent of the number of divisions and joints.
 
     Attributes:
+        order: Magnus order of every step, 4 (2 Zanna nodes) or 6 (3 Gauss nodes),
+            see :func:`magnus_order`.
         h: (n_steps,) step lengths [m] (1 for joints).
-        c: (n_steps,) Magnus commutator weights ``sqrt(3) h^2 / 12`` (0 for joints).
-        Phi_z: (n_steps, 2, 6, n_dof) bases at the two Zanna points, zero outside
+        c: (n_steps,) 4th-order commutator weights ``sqrt(3) h^2 / 12`` (0 for
+            joints; unused by 6th-order steps).
+        Phi_z: (n_steps, n_nodes, 6, n_dof) bases at the Magnus nodes, zero outside
             the step's own columns.
-        xi_ref_z: (n_steps, 2, 6) reference strains at the Zanna points.
+        xi_ref_z: (n_steps, n_nodes, 6) reference strains at the Magnus nodes.
     """
 
+    order: int = eqx.field(static=True)
     h: Float[Array, " n_steps"]
     c: Float[Array, " n_steps"]
-    Phi_z: Float[Array, "n_steps 2 6 n_dof"]
-    xi_ref_z: Float[Array, "n_steps 2 6"]
+    Phi_z: Float[Array, "n_steps n_nodes 6 n_dof"]
+    xi_ref_z: Float[Array, "n_steps n_nodes 6"]
 
 
-def _step_data(links: list, n: int) -> StepData:
+def _step_data(links: list, n: int, order: int) -> StepData:
+    nz = len(_NODES[order])
     h, c, Phi_z, xr = [], [], [], []
     for ld in links:
         jo, jn = ld.joint_offset, ld.joint_Phi.shape[1]
@@ -99,24 +133,26 @@ def _step_data(links: list, n: int) -> StepData:
             P = jnp.zeros((6, n)).at[:, jo : jo + jn].set(ld.joint_Phi)
             h.append(jnp.ones(1))
             c.append(jnp.zeros(1))
-            Phi_z.append(jnp.stack([P, P])[None])
-            xr.append(jnp.zeros((1, 2, 6)))
+            Phi_z.append(jnp.stack([P] * nz)[None])
+            xr.append(jnp.zeros((1, nz, 6)))
         for dd in ld.divisions if ld.soft else ():
             m, o = dd.h.shape[0], dd.offset
             h.append(dd.h)
             c.append(_C * dd.h * dd.h)
             Phi_z.append(
-                jnp.zeros((m, 2, 6, n)).at[..., o : o + dd.n_dof].set(dd.Phi_z)
+                jnp.zeros((m, nz, 6, n)).at[..., o : o + dd.n_dof].set(dd.Phi_z)
             )
             xr.append(dd.xi_ref_z)
     if not h:
         return StepData(
+            order=order,
             h=jnp.zeros(0),
             c=jnp.zeros(0),
-            Phi_z=jnp.zeros((0, 2, 6, n)),
-            xi_ref_z=jnp.zeros((0, 2, 6)),
+            Phi_z=jnp.zeros((0, nz, 6, n)),
+            xi_ref_z=jnp.zeros((0, nz, 6)),
         )
     return StepData(
+        order=order,
         h=jnp.concatenate(h),
         c=jnp.concatenate(c),
         Phi_z=jnp.concatenate(Phi_z),
@@ -160,6 +196,9 @@ def precompute(linkage: Linkage) -> LinkageData:
     lay: Layout = linkage.layout
     n = lay.n_dof
     n_pts = lay.n_points
+    order = magnus_order(linkage)
+    nodes = _NODES[order]
+    nz = len(nodes)
     K = jnp.zeros((n, n))
     D = jnp.zeros((n, n))
     weight = np.zeros(n_pts)
@@ -180,14 +219,15 @@ def precompute(linkage: Linkage) -> LinkageData:
                 L = div.length
                 S = _scale_rows(L)[None, :, None]
                 X1 = dl.X1
-                Xz = np.stack([X1[:-1] + (X1[1:] - X1[:-1]) * z for z in _ZANNA], 1)
-                nz = len(X1) - 1
+                Xz = np.stack([X1[:-1] + (X1[1:] - X1[:-1]) * z for z in nodes], 1)
+                n_steps = len(X1) - 1
                 Xall = jnp.asarray(np.concatenate([X1, Xz.reshape(-1)]))
                 Phi_all = S * jax.vmap(div.basis)(Xall)
                 xr_all = jax.vmap(div.reference_strain)(Xall)
                 Phi, Phi_z = Phi_all[: len(X1)], Phi_all[len(X1) :]
-                Phi_z = Phi_z.reshape(nz, 2, 6, dl.n_dof)
-                xr, xr_z = xr_all[: len(X1)], xr_all[len(X1) :].reshape(nz, 2, 6)
+                Phi_z = Phi_z.reshape(n_steps, nz, 6, dl.n_dof)
+                xr = xr_all[: len(X1)]
+                xr_z = xr_all[len(X1) :].reshape(n_steps, nz, 6)
                 Sigma, Ms, Ups = jax.vmap(
                     lambda x, sec=div.section, m=mat, G=G: section_matrices(
                         sec, x, m.E, G, m.rho, m.eta
@@ -240,7 +280,7 @@ def precompute(linkage: Linkage) -> LinkageData:
     return LinkageData(
         n_dof=n,
         links=tuple(links),
-        steps=_step_data(links, n),
+        steps=_step_data(links, n, order),
         point_weight=point_weight,
         point_M=point_M,
         K=K,
