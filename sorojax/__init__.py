@@ -137,6 +137,7 @@ from .statics import EquilibriumPath as EquilibriumPath
 from .statics import ModelChoice as ModelChoice
 from .statics import UnstableEquilibriumWarning as UnstableEquilibriumWarning
 from .statics import choose_model as choose_model
+from .statics import choose_model_dynamics as choose_model_dynamics
 from .statics import continuation as continuation
 from .statics import discretization_error as discretization_error
 from .statics import solve_statics as solve_statics

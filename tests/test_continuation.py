@@ -19,7 +19,7 @@ from sorojax.scenes import euler_column, pinned_elastica, von_mises_truss
 
 def test_clamped_free_column_buckles_at_euler_load():
     """Straight column: stable below the bifurcation, which is detected at
-    P / P_cr = 1 within 1e-4 (measured 2.5e-6 at order 6); switching onto the
+    P / P_cr = 1 within 1e-4 (measured 1.6e-11 at order 6); switching onto the
     buckled branch, the post-buckling path is stable (supercritical) and rises."""
     path = sj.continuation(euler_column(6), 0.0, 1.5, switch_branch=True)
     assert path.status == "reached p1"
@@ -43,7 +43,7 @@ def elastica():
 def test_pinned_elastica_post_buckling_path_matches_elliptic_integrals(elastica):
     """Every traced point of the buckled branch (end rotations up to ~80 degrees)
     lies on the exact elastica P / P_cr = (2 K(sin(alpha/2)) / pi)^2 within 1e-4
-    relative (measured ~1.5e-5 at order 8); the bifurcation is within 1e-3 of
+    relative (measured 1.6e-7 at order 8); the bifurcation is within 1e-3 of
     P_cr; the published 60-degree point (1.1517) is the closed form's."""
     assert (
         abs((2 * ellipk(math.sin(math.radians(30)) ** 2) / math.pi) ** 2 - 1.1517)

@@ -10,6 +10,9 @@ from ._adequacy import (
     choose_model as choose_model,
 )
 from ._adequacy import (
+    choose_model_dynamics as choose_model_dynamics,
+)
+from ._adequacy import (
     discretization_error as discretization_error,
 )
 from ._adequacy import (
