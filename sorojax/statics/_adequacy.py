@@ -471,6 +471,61 @@ def _greedy(cur, err, errors, modes, n_ref, target):
     return cur, err
 
 
+def _choose(
+    linkage,
+    user,
+    reference,
+    q_ref,
+    truncated,
+    errors,
+    verify,
+    ref_err,
+    *,
+    modes,
+    tol,
+    safety,
+    max_rounds,
+    cap,
+    length,
+    start,
+) -> ModelChoice:
+    """The rounds shared by :func:`choose_model` and its dynamics twin.
+
+    Greedy orders against the proxy ``errors`` down to the target, points until the
+    kinematics agree, then ``verify(chosen) -> (q, error, ok)`` (one solve or
+    simulation); above ``tol`` the target drops by the excess and a round follows.
+    """
+    n_ref = max(o for v in division_orders(reference).values() for o in v)
+    cur = {key: (OFF,) * 6 for key in user}
+    err = float(errors([cur])[0])
+    target = safety * tol
+    history, chosen, q_c, verified, runs = [], None, None, np.inf, 1
+    for _ in range(max_rounds):
+        cur, err = _greedy(cur, err, errors, modes, n_ref, target)
+        chosen = _with_enough_points(
+            linkage, cur, reference, truncated(cur), length, target, cap
+        )
+        runs += 1
+        q_c, verified, ok = verify(chosen)
+        history.append((_dofs(cur), err, verified))
+        if verified <= tol and ok:
+            break
+        target = target * min(0.5, tol / max(verified, 1e-300))
+    return ModelChoice(
+        linkage=chosen,
+        orders=dict(cur),
+        n_dof=chosen.n_dof,
+        q=q_c,
+        error_estimate=verified,
+        reference=reference,
+        q_reference=q_ref,
+        reference_error=ref_err,
+        num_solves=runs,
+        seconds=time.perf_counter() - start,
+        history=tuple(history),
+    )
+
+
 def choose_model(
     linkage: Linkage,
     q0: ArrayLike | None = None,
@@ -549,14 +604,12 @@ def choose_model(
     ref_orders = {key: tuple(n_ref if m else OFF for m in modes) for key in user}
     reference = with_orders(linkage, ref_orders, pts)
     q0_ref = None if q0 is None else transfer_coordinates(linkage, q0, reference)
-    solves = 1
     sol_ref = solve_statics(reference, q0_ref, u, t=t, warn_unstable=False)
     q_ref = np.asarray(sol_ref.q)
     ref_err = discretization_error(
         reference, q_ref, quantity=quantity, length=length
     ).error
     index = _coefficient_index(reference)
-    keys = list(user)
 
     # The reference's tangent at its solution: candidates are judged by their
     # Galerkin solution of the equilibrium linearised there (exact up to second
@@ -587,22 +640,7 @@ def choose_model(
         qs = np.asarray([truncated(c) for c in candidates])
         return _qoi_error(reference, qs, jnp.asarray(q_ref), length, quantity)
 
-    cur = {key: (OFF,) * 6 for key in keys}
-    err = float(errors([cur])[0])
-    target = safety * tol
-    history = []
-    chosen_q = None
-    verified = np.inf
-    chosen = None
-    for _ in range(max_rounds):
-        cur, err = _greedy(cur, err, errors, modes, n_ref, target)
-        # points: the chosen model's kinematics of the truncated reference solution
-        # against the reference's, doubling the points until within the target
-        chosen = _with_enough_points(
-            linkage, cur, reference, truncated(cur), length, target, 4 * pts
-        )
-        # verify with a solve of the chosen model
-        solves += 1
+    def verify(chosen):
         sol = solve_statics(
             chosen,
             transfer_coordinates(reference, q_ref, chosen),
@@ -613,28 +651,29 @@ def choose_model(
         )
         q_c = np.asarray(sol.q)
         if quantity is None:  # with the chosen model's own kinematics (its points)
-            verified = _kinematic_difference(chosen, q_c, reference, q_ref, length)
+            err = _kinematic_difference(chosen, q_c, reference, q_ref, length)
         else:
             a = np.asarray(quantity(chosen, jnp.asarray(q_c)))
             b = np.asarray(quantity(reference, jnp.asarray(q_ref)))
-            verified = float(np.max(np.abs(a - b)) / length)
-        history.append((_dofs(cur), err, verified))
-        chosen_q = q_c
-        if verified <= tol and int(sol.result._value) == 0:
-            break
-        target = target * min(0.5, tol / max(verified, 1e-300))
-    return ModelChoice(
-        linkage=chosen,
-        orders=dict(cur),
-        n_dof=chosen.n_dof,
-        q=chosen_q,
-        error_estimate=verified,
-        reference=reference,
-        q_reference=q_ref,
-        reference_error=ref_err,
-        num_solves=solves,
-        seconds=time.perf_counter() - start,
-        history=tuple(history),
+            err = float(np.max(np.abs(a - b)) / length)
+        return q_c, err, int(sol.result._value) == 0
+
+    return _choose(
+        linkage,
+        user,
+        reference,
+        q_ref,
+        truncated,
+        errors,
+        verify,
+        ref_err,
+        modes=modes,
+        tol=tol,
+        safety=safety,
+        max_rounds=max_rounds,
+        cap=4 * pts,
+        length=length,
+        start=start,
     )
 
 
@@ -715,16 +754,7 @@ def choose_model_dynamics(
         g = g.reshape(len(candidates), len(q_ref), *g.shape[1:])
         return pose_distance(g, g_ref[None], length).max(axis=(1, 2))
 
-    cur = {key: (OFF,) * 6 for key in user}
-    err = float(errors([cur])[0])
-    target = safety * tol
-    history, chosen, q_c, verified, runs = [], None, None, np.inf, 1
-    for _ in range(max_rounds):
-        cur, err = _greedy(cur, err, errors, modes, n_ref, target)
-        chosen = _with_enough_points(
-            linkage, cur, reference, truncated(cur), length, target, 4 * pts
-        )
-        runs += 1
+    def verify(chosen):
         tr = simulate(
             chosen,
             t1,
@@ -735,21 +765,24 @@ def choose_model_dynamics(
             **simulate_kwargs,
         )
         q_c = np.asarray(tr.q)
-        verified = _kinematic_difference(chosen, q_c, reference, q_ref, length)
-        history.append((_dofs(cur), err, verified))
-        if verified <= tol and int(tr.result._value) == 0:
-            break
-        target = target * min(0.5, tol / max(verified, 1e-300))
-    return ModelChoice(
-        linkage=chosen,
-        orders=dict(cur),
-        n_dof=chosen.n_dof,
-        q=q_c,
-        error_estimate=verified,
-        reference=reference,
-        q_reference=q_ref,
-        reference_error=discretization_error(reference, q_ref[-1], length=length).error,
-        num_solves=runs,
-        seconds=time.perf_counter() - start,
-        history=tuple(history),
+        err = _kinematic_difference(chosen, q_c, reference, q_ref, length)
+        return q_c, err, int(tr.result._value) == 0
+
+    ref_err = discretization_error(reference, q_ref[-1], length=length).error
+    return _choose(
+        linkage,
+        user,
+        reference,
+        q_ref,
+        truncated,
+        errors,
+        verify,
+        ref_err,
+        modes=modes,
+        tol=tol,
+        safety=safety,
+        max_rounds=max_rounds,
+        cap=4 * pts,
+        length=length,
+        start=start,
     )
