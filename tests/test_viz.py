@@ -302,3 +302,40 @@ def test_rotation_interpolation_helpers():
     # Positions advance monotonically along the arc.
     angles = np.arctan2(gs[:, 0, 3], 1.0 - gs[:, 1, 3])
     assert np.all(np.diff(np.concatenate([[0.0], angles, [0.4]])) > 0)
+
+
+def test_equilibrium_path_chart_draws_stable_solid_and_unstable_dashed():
+    """A path stable, then unstable, then stable (a snap-through's shape): three
+    lines, solid / dashed / solid, that pass through every point in order; the
+    limit points are marked; a bad coordinate index is refused."""
+    from sorojax.statics import CriticalPoint, EquilibriumPath
+    from sorojax.viz import plot_equilibrium_path
+
+    n = 9
+    p = np.sin(np.linspace(0.0, 2.5 * np.pi, n))
+    q = np.stack([np.linspace(1.0, -1.0, n), np.zeros(n)], axis=1)
+    stable = np.array([1, 1, 1, 0, 0, 0, 1, 1, 1], bool)
+    crit = tuple(
+        CriticalPoint("limit", float(p[i]), q[i], np.zeros(0), q[i], i, 1, (0, 1))
+        for i in (2, 6)
+    )
+    path = EquilibriumPath(
+        p,
+        q,
+        np.zeros((n, 0)),
+        stable,
+        (~stable).astype(int),
+        np.ones(n),
+        np.zeros(n, int),
+        crit,
+        "reached p1",
+        n,
+    )
+    ax = plot_equilibrium_path(path, 0)
+    lines = [ln for ln in ax.get_lines() if ln.get_linestyle() in ("-", "--")]
+    assert [ln.get_linestyle() for ln in lines] == ["-", "--", "-"]
+    xs = np.concatenate([ln.get_xdata() for ln in lines])
+    assert np.allclose(np.unique(xs), np.unique(p))
+    assert sum(ln.get_marker() == "^" for ln in ax.get_lines()) == 2
+    with pytest.raises(ValueError, match="coordinate"):
+        plot_equilibrium_path(path, 5)

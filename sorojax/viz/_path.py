@@ -67,16 +67,21 @@ def plot_equilibrium_path(
     def xy(a, b):
         return (b, a) if swap_axes else (a, b)
 
-    labelled = False
-    for i in range(len(p) - 1):
-        both = stable[i] and stable[i + 1]
+    # Segment i joins points i and i+1 and is solid when both are stable; runs of
+    # equal style are drawn as one line, so that the dashes of many short
+    # segments do not merge into a solid-looking line.
+    seg_stable = stable[:-1] & stable[1:]
+    start, labelled = 0, False
+    for i in range(1, len(seg_stable) + 1):
+        if i < len(seg_stable) and seg_stable[i] == seg_stable[start]:
+            continue
         ax.plot(
-            *xy(p[i : i + 2], y[i : i + 2]),
-            linestyle="-" if both else "--",
+            *xy(p[start : i + 1], y[start : i + 1]),
+            linestyle="-" if seg_stable[start] else "--",
             color=color,
             label=label if (label and not labelled) else None,
         )
-        labelled = True
+        start, labelled = i, True
     if len(p) == 1:
         ax.plot(*xy(p, y), "o", color=color, label=label)
     for c in path.critical:
