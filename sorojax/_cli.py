@@ -44,6 +44,10 @@ def _demo(args) -> int:
         f"  iterations = {int(sol.num_steps)}, "
         f"residual = {float(sol.residual_norm):.2e}"
     )
+    print(
+        f"  equilibrium: {'stable' if bool(sol.stable) else 'UNSTABLE'} (smallest "
+        f"scaled tangent-stiffness eigenvalue {float(sol.min_eigenvalue):.3g})"
+    )
     print(f"  q = {np.asarray(sol.q)}")
     print(f"  tip position [m] = {tip[:3, 3]}")
     print("  tip rotation =\n" + "\n".join("    " + str(r) for r in tip[:3, :3]))
