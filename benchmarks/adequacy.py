@@ -40,6 +40,7 @@ points of issue 16) and ``adequacy.png`` (true error vs DoF and vs warm time).
 import argparse
 import csv
 import dataclasses
+import gc
 import json
 import math
 import statistics
@@ -738,6 +739,10 @@ def main(argv=None):
         print(f"  ({res['seconds']:.0f} s)", flush=True)
         results.append(res)
         rows.extend(rs)
+        # hundreds of compiled programs in one process exhausted LLVM's memory
+        # (segfault in the 12-scene run): drop them between scenes
+        jax.clear_caches()
+        gc.collect()
     total = time.perf_counter() - t_start
     print(f"\nTotal {total:.0f} s\n")
     print_table(results)

@@ -432,25 +432,37 @@ def _greedy(cur, err, errors, modes, n_ref, target):
     """Raise orders until ``errors`` says the QoI error is below ``target``.
 
     Each round tries one and two more orders of every (division, mode) the
-    choice may use, and keeps the candidate with the largest drop of log(error)
-    per added coordinate; when none lowers it, every usable mode goes up by one.
-    ``errors(list of orders dicts) -> array`` evaluates all candidates at once.
+    choice may use, and the coupled moves one more order of every mode of a
+    division and of a mode in every division; it keeps the candidate with the
+    largest drop of log(error) per added coordinate; when none lowers it, every
+    usable mode goes up by one. ``errors(list of orders dicts) -> array``
+    evaluates all candidates at once.
     """
     keys = list(cur)
+
+    def raised(moves):
+        """``cur`` with ``{(key, mode): steps}`` applied, and the coordinates added."""
+        cand, extra = dict(cur), 0
+        for (key, m), step in moves.items():
+            o = list(cand[key])
+            new = min(o[m] + step, n_ref)
+            extra += new - o[m]
+            o[m] = new
+            cand[key] = tuple(o)
+        return cand, extra
+
+    usable = [(key, m) for key in keys for m in range(6) if modes[m]]
     while err > target:
+        open_ = [(key, m) for key, m in usable if cur[key][m] < n_ref]
+        moves = [{km: step} for km in open_ for step in (1, 2)]
+        moves += [{(key, m): 1 for k2, m in open_ if k2 == key} for key in keys]
+        moves += [{(key, m): 1 for key, m2 in open_ if m2 == m} for m in range(6)]
         cands, added = [], []
-        for key in keys:
-            for m in range(6):
-                if not modes[m] or cur[key][m] >= n_ref:
-                    continue
-                for step in (1, 2):
-                    new = min(cur[key][m] + step, n_ref)
-                    o = list(cur[key])
-                    o[m] = new
-                    cand = dict(cur)
-                    cand[key] = tuple(o)
-                    cands.append(cand)
-                    added.append(new - cur[key][m])
+        for mv in moves:
+            cand, extra = raised(mv)
+            if extra > 0 and cand not in cands:
+                cands.append(cand)
+                added.append(extra)
         if not cands:
             break
         errs = np.asarray(errors(cands))
