@@ -429,7 +429,7 @@ def _dofs(orders) -> int:
 
 
 def _greedy(cur, err, errors, modes, n_ref, target):
-    """Raise orders until ``errors`` says the QoI error is below ``target``.
+    """Raise orders until ``errors`` says the QoI error is below ``target``, then prune.
 
     Each round tries one and two more orders of every (division, mode) the
     choice may use, and the coupled moves one more order of every mode of a
@@ -480,7 +480,34 @@ def _greedy(cur, err, errors, modes, n_ref, target):
             err = float(errors([cur])[0])
             continue
         cur, err = cands[best], float(errs[best])
-    return cur, err
+    return _prune(cur, err, errors, target)
+
+
+def _prune(cur, err, errors, target):
+    """Lower orders one at a time while ``errors`` stays within ``target``.
+
+    The forward greedy can overshoot (a coupled move, or an early order a later one
+    makes redundant: the L-beam at 1e-3 L took 24 coordinates where 12 do); each
+    pass tries every (division, mode) one order down (order 0 -> off) and keeps the
+    lowest error among those within the target.
+    """
+    while True:
+        cands = []
+        for key, o in cur.items():
+            for m in range(6):
+                if o[m] >= 0:
+                    low = list(o)
+                    low[m] -= 1
+                    cand = dict(cur)
+                    cand[key] = tuple(low)
+                    cands.append(cand)
+        if not cands:
+            return cur, err
+        errs = np.asarray(errors(cands))
+        best = int(np.argmin(errs))
+        if errs[best] > target:
+            return cur, err
+        cur, err = cands[best], float(errs[best])
 
 
 def _choose(
