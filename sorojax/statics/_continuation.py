@@ -371,7 +371,7 @@ def continuation(
     status = "max_points"
     step = float(ds)
 
-    def add_critical(kind, pt, k, n_before, n_after, mode):
+    def add_critical(kind, pt, n_before, n_after, mode):
         z = pt["z"]
         m = np.zeros(n)
         m[free] = mode
@@ -445,7 +445,6 @@ def continuation(
             add_critical(
                 kind,
                 found,
-                k,
                 pt_prev["n_neg"],
                 new["n_neg"],
                 found["vecs"][:, k],
