@@ -510,6 +510,29 @@ def _prune(cur, err, errors, target):
         cur, err = cands[best], float(errs[best])
 
 
+def _reference_model(linkage, tol, modes, length, reference_order, reference_points):
+    """Checked arguments and the reference model of the model choice.
+
+    Returns ``(modes, length, user orders, reference, points per division)``.
+    """
+    if not 0 < tol < 1:
+        raise ValueError(f"tol = {tol!r}: give a relative tolerance in (0, 1).")
+    modes = tuple(int(bool(m)) for m in modes)
+    if len(modes) != 6 or not any(modes):
+        raise ValueError(f"modes = {modes!r}: give six 0/1 flags, at least one 1.")
+    length = reference_length(linkage) if length is None else float(length)
+    user = division_orders(linkage)
+    n_ref = int(reference_order)
+    pts = 4 * n_ref + 8 if reference_points is None else int(reference_points)
+    ref_orders = {key: tuple(n_ref if m else OFF for m in modes) for key in user}
+    return modes, length, user, with_orders(linkage, ref_orders, pts), pts
+
+
+def _dropped(index, orders) -> list[int]:
+    """Indices in q of the coefficients above ``orders`` (``_coefficient_index``)."""
+    return [j for (i, k, m, c), j in index.items() if c > orders[(i, k)][m]]
+
+
 def _choose(
     linkage,
     user,
@@ -631,17 +654,9 @@ def choose_model(
         RuntimeError: the reference solve fails.
     """
     start = time.perf_counter()
-    if not 0 < tol < 1:
-        raise ValueError(f"tol = {tol!r}: give a relative tolerance in (0, 1).")
-    modes = tuple(int(bool(m)) for m in modes)
-    if len(modes) != 6 or not any(modes):
-        raise ValueError(f"modes = {modes!r}: give six 0/1 flags, at least one 1.")
-    length = reference_length(linkage) if length is None else float(length)
-    user = division_orders(linkage)
-    n_ref = int(reference_order)
-    pts = 4 * n_ref + 8 if reference_points is None else int(reference_points)
-    ref_orders = {key: tuple(n_ref if m else OFF for m in modes) for key in user}
-    reference = with_orders(linkage, ref_orders, pts)
+    modes, length, user, reference, pts = _reference_model(
+        linkage, tol, modes, length, reference_order, reference_points
+    )
     q0_ref = None if q0 is None else transfer_coordinates(linkage, q0, reference)
     sol_ref = solve_statics(reference, q0_ref, u, t=t, warn_unstable=False)
     q_ref = np.asarray(sol_ref.q)
@@ -661,11 +676,10 @@ def choose_model(
     def truncated(orders):
         q = q_ref.copy()
         keep = np.ones(len(x_ref), bool)
-        for (i, k, m, c), j in index.items():
-            if c > orders[(i, k)][m]:
-                q[j] = 0.0
-                if j in pos_in_x:
-                    keep[pos_in_x[j]] = False
+        for j in _dropped(index, orders):
+            q[j] = 0.0
+            if j in pos_in_x:
+                keep[pos_in_x[j]] = False
         # linearised Galerkin: E^T J (E x_K - x_ref) = 0 on the kept unknowns
         A = J_u[np.ix_(keep, keep)]
         b = J_u[keep] @ x_ref
@@ -751,19 +765,11 @@ def choose_model_dynamics(
     from ..integrate import simulate  # statics and integrate are peers: no cycle
 
     start = time.perf_counter()
-    if not 0 < tol < 1:
-        raise ValueError(f"tol = {tol!r}: give a relative tolerance in (0, 1).")
-    modes = tuple(int(bool(m)) for m in modes)
-    if len(modes) != 6 or not any(modes):
-        raise ValueError(f"modes = {modes!r}: give six 0/1 flags, at least one 1.")
-    length = reference_length(linkage) if length is None else float(length)
+    modes, length, user, reference, pts = _reference_model(
+        linkage, tol, modes, length, reference_order, reference_points
+    )
     simulate_kwargs.setdefault("rtol", 1e-6)
     simulate_kwargs.setdefault("atol", 1e-8)
-    user = division_orders(linkage)
-    n_ref = int(reference_order)
-    pts = 4 * n_ref + 8 if reference_points is None else int(reference_points)
-    ref_orders = {key: tuple(n_ref if m else OFF for m in modes) for key in user}
-    reference = with_orders(linkage, ref_orders, pts)
 
     def moved(q, target):
         return None if q is None else transfer_coordinates(linkage, q, target)
@@ -782,9 +788,7 @@ def choose_model_dynamics(
 
     def truncated(orders):
         q = q_ref.copy()
-        for (i, k, m, c), j in index.items():
-            if c > orders[(i, k)][m]:
-                q[:, j] = 0.0
+        q[:, _dropped(index, orders)] = 0.0
         return q
 
     def errors(candidates):
