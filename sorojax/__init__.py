@@ -8,6 +8,9 @@ from ._cache import enable_compilation_cache as enable_compilation_cache
 from ._jit import compiler_options as compiler_options
 from ._results import RESULTS as RESULTS
 from ._results import StaticsSolution as StaticsSolution
+from .control import Environment as Environment
+from .control import EnvState as EnvState
+from .control import rollout as rollout
 from .dynamics import actuation_matrix as actuation_matrix
 from .dynamics import cable_lengths as cable_lengths
 from .dynamics import closure_errors as closure_errors
