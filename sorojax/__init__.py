@@ -8,6 +8,7 @@ from ._cache import enable_compilation_cache as enable_compilation_cache
 from ._jit import compiler_options as compiler_options
 from ._results import RESULTS as RESULTS
 from ._results import StaticsSolution as StaticsSolution
+from ._sweep import sweep as sweep
 from .control import Environment as Environment
 from .control import EnvState as EnvState
 from .control import rollout as rollout
