@@ -17,6 +17,7 @@ termination (write them as plain functions of the state; the helpers below give 
 usual observations), and training loops (see ``examples/learn_reach.py``).
 """
 
+import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -25,10 +26,20 @@ from jaxtyping import Array, ArrayLike, Float, Int, PRNGKeyArray
 
 from .._results import RESULTS
 from ..dynamics._actuation import cable_lengths
-from ..integrate._simulate import simulate
+from ..dynamics._eom import consistent_velocities
+from ..integrate._simulate import (
+    _initial_state,
+    _input_function,
+    _make_solver,
+    _needs_inputs,
+    _root_finder_tolerances,
+    _vector_field,
+    simulate,
+)
 from ..kinematics._api import screw_strains, tip_pose
 from ..model._actuation import Cable
 from ..model._linkage import Linkage
+from ..model._precompute import precompute
 
 
 class EnvState(eqx.Module):
@@ -214,6 +225,8 @@ class Environment(eqx.Module):
         """
         u_fn, u1 = self.input_function(state, action)
         t1 = state.t + self.period
+        if self.dt is not None:
+            return self._fixed_steps(state, u_fn, u1, t1)
         tr = simulate(
             self.linkage,
             t1,
@@ -243,6 +256,59 @@ class Environment(eqx.Module):
             u=u1,
             result=jnp.asarray(tr.result._value, jnp.int32),
             steps=jnp.asarray(tr.num_steps, jnp.int32),
+        )
+
+    def _fixed_steps(self, state, u_fn, u1, t1) -> EnvState:
+        """Constant steps without diffrax's loop.
+
+        ``simulate(adaptive=False)``'s steps (same solver, same stages) in a
+        ``fori_loop`` of known length, so that autodiff goes through the steps
+        directly instead of through the checkpointed while loop of
+        ``diffeqsolve``.
+        """
+        lk = self.linkage
+        dtype = state.q.dtype
+        n_sub = round(self.period / self.dt)
+        u_const = u1 if u_fn is None else jnp.zeros(lk.n_inputs, dtype)
+        solver = _make_solver(self.solver)
+        solver = _root_finder_tolerances(solver, self.rtol, self.atol)
+        t0 = state.t
+        _, y0, _ = _initial_state(lk, state.q, state.qd, t0, t1, u_fn, u_const, None)
+        data = precompute(lk)
+        n = lk.n_dof
+        if _needs_inputs(lk):
+            qd0 = consistent_velocities(
+                lk, data, t0, y0[:n], y0[n:], _input_function(u_fn, u_const)
+            )
+            y0 = jnp.concatenate([y0[:n], qd0])
+        term = _vector_field(lk, None, u_fn)
+        args = (data, u_const)
+        dt = jnp.asarray(self.dt, dtype)
+        solver_state = solver.init(term, t0, t0 + dt, y0, args)
+
+        def body(i, carry):
+            y, st, bad = carry
+            ta = t0 + i * dt
+            tb = jnp.where(i == n_sub - 1, t1, ta + dt)
+            y1, _, _, st, res = solver.step(term, ta, tb, y, args, st, False)
+            return y1, st, bad | (res != diffrax.RESULTS.successful)
+
+        y, _, bad = jax.lax.fori_loop(
+            0, n_sub, body, (y0, solver_state, jnp.asarray(False))
+        )
+        ok = ~bad & jnp.all(jnp.isfinite(y))
+        code = jnp.where(
+            bad,
+            RESULTS.failed._value,
+            jnp.where(ok, 0, RESULTS.nonlinear_divergence._value),
+        )
+        return EnvState(
+            q=jnp.where(ok, jnp.nan_to_num(y[:n]), state.q),
+            qd=jnp.where(ok, jnp.nan_to_num(y[n:]), state.qd),
+            t=jnp.where(ok, t1, state.t),
+            u=u1,
+            result=jnp.asarray(code, jnp.int32),
+            steps=jnp.asarray(n_sub, jnp.int32),
         )
 
     # ------------------------------------------------------------ observations

@@ -226,11 +226,14 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
         """One step of the method (see the module docstring)."""
         tab = self.tableau
         # First same as last, unless the vector field jumped at t0 (diffrax's jump_ts).
-        f0, lin0 = jax.lax.cond(
-            made_jump,
-            lambda: self._evaluate(terms, t0, y0, args),
-            lambda: solver_state,
-        )
+        if made_jump is False:  # a caller's own loop (sorojax.Environment): no cond,
+            f0, lin0 = solver_state  # so no second copy of the vector field
+        else:
+            f0, lin0 = jax.lax.cond(
+                made_jump,
+                lambda: self._evaluate(terms, t0, y0, args),
+                lambda: solver_state,
+            )
         h = t1 - t0
         c = h * tab.gamma
         if _mechanical_term(terms) is not None:
