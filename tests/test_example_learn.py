@@ -1,0 +1,51 @@
+"""examples/learn_reach.py: an MLP policy trained through the simulator.
+
+The example's ``main(argv)`` runs in this process in a quick setting (40 Adam steps
+on batches of 8 targets, 16 held-out targets); one compiled training step serves
+every iteration.
+"""
+
+import importlib.util
+import pathlib
+
+import numpy as np
+import pytest
+
+EXAMPLES = pathlib.Path(__file__).resolve().parent.parent / "examples"
+QUICK = ["--iterations", "40", "--batch", "8", "--held-out", "16"]
+
+
+def _load(name):
+    spec = importlib.util.spec_from_file_location(name, EXAMPLES / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_policy_learns_to_reach_held_out_targets(tmp_path):
+    """Analytic policy gradients through 20-period rollouts of the 4-DoF cable arm.
+
+    (1) Training lowers the loss at least 4x (measured 2.1e-2 -> 2.3e-3 m^2 in 40
+    steps: a failed gradient, e.g. zero or wrong in sign, leaves it flat).
+    (2) On held-out targets (median 185 mm from the hanging tip) the trained
+    policy's median tip error after 1 s is below 60 % of the PD law's without
+    feedforward and below 80 mm (measured 51 vs 137 mm).
+    (3) The PD law with the exact feedforward tensions
+    settles within 10 mm (measured 3.2 mm): a check that the environment's
+    dynamics and statics agree (the feedforward tensions are those whose
+    equilibrium is the target).
+    """
+    ex = _load("learn_reach")
+    res = ex.main([*QUICK, "--out", str(tmp_path)])
+    assert res["loss_last"] < res["loss_first"] / 4, (
+        res["loss_first"],
+        res["loss_last"],
+    )
+    mlp, pd = res["mlp_error_median_m"], res["pd_error_median_m"]
+    assert mlp < 0.6 * pd and mlp < 0.08, (mlp, pd)
+    assert res["pd_ff_error_median_m"] < 0.01, res["pd_ff_error_median_m"]
+    assert np.all(np.isfinite(res["losses"]))
+    png = tmp_path / "learn_reach.png"
+    assert png.stat().st_size > 10_000
+    with pytest.raises(SystemExit, match="overwrite"):
+        ex.main([*QUICK, "--out", str(tmp_path)])
