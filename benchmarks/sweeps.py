@@ -37,6 +37,7 @@ def _args(argv):
     )
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--skip-dynamics", action="store_true")
+    ap.add_argument("--chunk", type=int, default=None, help="sweep's cases per pass")
     ap.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "results"))
     ap.add_argument("--tag", default="", help="suffix of the result files")
     return ap.parse_args(argv)
@@ -106,9 +107,9 @@ def measure(name, case, T, loop_cases, repeats):
     row["compile_vmap_s"] = time.perf_counter() - t
     row["vmap_per_s"] = n / _median_time(lambda: vm(T), repeats)
     t = time.perf_counter()
-    out_s = jax.block_until_ready(sj.sweep(case, T))
+    out_s = jax.block_until_ready(sj.sweep(case, T, chunk=ARGS.chunk))
     row["compile_sweep_s"] = time.perf_counter() - t
-    row["sweep_per_s"] = n / _median_time(lambda: sj.sweep(case, T), repeats)
+    row["sweep_per_s"] = n / _median_time(lambda: sj.sweep(case, T, chunk=ARGS.chunk), repeats)
     row["sweep_vs_vmap_max_diff_m"] = float(
         np.abs(np.asarray(out_s[0]) - np.asarray(out_v[0])).max()
     )
@@ -142,9 +143,9 @@ def main():
                 if name == "dynamics" and ARGS.skip_dynamics:
                     continue
                 t = time.perf_counter()
-                jax.block_until_ready(sj.sweep(case, T))
+                jax.block_until_ready(sj.sweep(case, T, chunk=ARGS.chunk))
                 first = time.perf_counter() - t
-                per_s = size / _median_time(lambda c=case, T=T: sj.sweep(c, T), 3)
+                per_s = size / _median_time(lambda c=case, T=T: sj.sweep(c, T, chunk=ARGS.chunk), 3)
                 rows.append(
                     {
                         "workload": name,

@@ -4,7 +4,12 @@
 evenly over ``jax.devices()`` (GPUs of a multi-GPU host; on a CPU, the host
 devices that ``XLA_FLAGS=--xla_force_host_platform_device_count=N`` creates, one
 per core: XLA runs each device's share on its own thread, where one vmapped
-program runs its small kernels mostly on one core) and, with ``chunk``, run in
+program runs its small kernels mostly on one core). Each device runs its share as
+an independent program (one asynchronous dispatch per device, compiled once per
+device), so a solver loop ends per device, without collectives: a sharded ``jit``
+of the same vmap kept the loops global and stalled on 2 CPU host devices at 1024
+cases, and ``pmap`` / ``shard_map`` trip lineax's structure check inside the
+statics solve (sharded abstract values) in JAX 0.10 and, with ``chunk``, run in
 chunks of that many cases per device one after another (``lax.map`` over chunks:
 bounded memory for very large sweeps on an accelerator). The batch is padded to a
 whole number of chunks with copies of its last case and the padding is dropped
@@ -22,7 +27,6 @@ from collections.abc import Callable, Sequence
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from ._jit import compiler_options
 
@@ -39,36 +43,26 @@ def _batch_size(args) -> int:
 
 
 @functools.lru_cache(maxsize=32)
-def _compiled(fn, n_dev, chunk, devices):
-    mesh = Mesh(np.asarray(devices), ("cases",))
-    shard = NamedSharding(mesh, PartitionSpec("cases"))
+def _compiled(fn, chunk, devices):
     batched = jax.vmap(fn)
 
-    def run(args):
+    def local(args):
+        # One device's cases, its own loops: a Newton loop stops when *its* slowest
+        # case converges, with no collective between devices.
         if chunk is None:
             return batched(*args)
-        # (n_dev * n_chunks * chunk, ...) -> (n_chunks, n_dev * chunk, ...): each
-        # chunk keeps every device busy
         lead = jax.tree.leaves(args)[0].shape[0]
-        n_chunks = lead // (n_dev * chunk)
 
         def split(x):
-            x = x.reshape(n_dev, n_chunks, chunk, *x.shape[1:])
-            return jnp.swapaxes(x, 0, 1).reshape(n_chunks, n_dev * chunk, *x.shape[3:])
+            return x.reshape(lead // chunk, chunk, *x.shape[1:])
 
         def merge(y):
-            y = y.reshape(n_chunks, n_dev, chunk, *y.shape[2:])
-            return jnp.swapaxes(y, 0, 1).reshape(n_chunks * n_dev * chunk, *y.shape[3:])
+            return y.reshape(lead, *y.shape[2:])
 
         out = jax.lax.map(lambda a: batched(*a), jax.tree.map(split, args))
         return jax.tree.map(merge, out)
 
-    return jax.jit(
-        run,
-        in_shardings=(shard,),
-        out_shardings=shard,
-        compiler_options=compiler_options(),
-    ), shard
+    return jax.jit(local, compiler_options=compiler_options())
 
 
 def sweep(
@@ -122,9 +116,26 @@ def sweep(
             ),
             args,
         )
-    run, shard = _compiled(fn, n_dev, chunk, devices)
-    args = jax.device_put(args, shard)
-    out = run(args)
+    run = _compiled(fn, chunk, devices)
+    per_dev = padded // n_dev
+    # one dispatch per device (asynchronous: they run concurrently), then gather
+    outs = [
+        run(
+            jax.device_put(
+                jax.tree.map(lambda x, d=d: x[d * per_dev : (d + 1) * per_dev], args),
+                dev,
+            )
+        )
+        for d, dev in enumerate(devices)
+    ]
+    out = (
+        outs[0]
+        if n_dev == 1
+        else jax.tree.map(
+            lambda *ys: jnp.concatenate([jax.device_put(y, devices[0]) for y in ys]),
+            *outs,
+        )
+    )
     if padded != n:
         out = jax.tree.map(lambda y: y[:n], out)
     return out
