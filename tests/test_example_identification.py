@@ -5,22 +5,13 @@ samples, constant step 20 ms); one compiled program (tip trajectory and its
 forward-mode Jacobian) serves the data, the fit and the checks below.
 """
 
-import importlib.util
 import math
-import pathlib
 
 import numpy as np
 import pytest
+from test_examples import _load  # one loader for the example scripts
 
-EXAMPLES = pathlib.Path(__file__).resolve().parent.parent / "examples"
 QUICK = ["--t1", "1.5", "--samples", "31", "--dt", "0.02"]
-
-
-def _load(name):
-    spec = importlib.util.spec_from_file_location(name, EXAMPLES / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def test_identification_recovers_parameters_within_noise(tmp_path):

@@ -5,21 +5,11 @@ on batches of 8 targets, 16 held-out targets); one compiled training step serves
 every iteration.
 """
 
-import importlib.util
-import pathlib
-
 import numpy as np
 import pytest
+from test_examples import _load  # one loader for the example scripts
 
-EXAMPLES = pathlib.Path(__file__).resolve().parent.parent / "examples"
 QUICK = ["--iterations", "40", "--batch", "8", "--held-out", "16"]
-
-
-def _load(name):
-    spec = importlib.util.spec_from_file_location(name, EXAMPLES / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def test_policy_learns_to_reach_held_out_targets(tmp_path):
