@@ -38,6 +38,12 @@ def _args(argv):
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--skip-dynamics", action="store_true")
     ap.add_argument("--chunk", type=int, default=None, help="sweep's cases per pass")
+    ap.add_argument(
+        "--load-steps",
+        type=int,
+        default=None,
+        help="solve_statics load_steps (None: its automatic schedule)",
+    )
     ap.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "results"))
     ap.add_argument("--tag", default="", help="suffix of the result files")
     return ap.parse_args(argv)
@@ -69,7 +75,7 @@ ARM = cable_manipulator(order=1, eta=3e4)
 
 
 def statics_case(T):
-    sol = sj.solve_statics(ARM, u=T, throw=False)
+    sol = sj.solve_statics(ARM, u=T, throw=False, load_steps=ARGS.load_steps)
     return sj.tip_pose(ARM, sol.q)[:3, 3], sol.result._value
 
 
@@ -109,7 +115,9 @@ def measure(name, case, T, loop_cases, repeats):
     t = time.perf_counter()
     out_s = jax.block_until_ready(sj.sweep(case, T, chunk=ARGS.chunk))
     row["compile_sweep_s"] = time.perf_counter() - t
-    row["sweep_per_s"] = n / _median_time(lambda: sj.sweep(case, T, chunk=ARGS.chunk), repeats)
+    row["sweep_per_s"] = n / _median_time(
+        lambda: sj.sweep(case, T, chunk=ARGS.chunk), repeats
+    )
     row["sweep_vs_vmap_max_diff_m"] = float(
         np.abs(np.asarray(out_s[0]) - np.asarray(out_v[0])).max()
     )
@@ -145,7 +153,9 @@ def main():
                 t = time.perf_counter()
                 jax.block_until_ready(sj.sweep(case, T, chunk=ARGS.chunk))
                 first = time.perf_counter() - t
-                per_s = size / _median_time(lambda c=case, T=T: sj.sweep(c, T, chunk=ARGS.chunk), 3)
+                per_s = size / _median_time(
+                    lambda c=case, T=T: sj.sweep(c, T, chunk=ARGS.chunk), 3
+                )
                 rows.append(
                     {
                         "workload": name,
