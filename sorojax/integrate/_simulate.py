@@ -400,7 +400,10 @@ def simulate(
         progress: show a tqdm progress bar (its host callback makes the compiled
             program uncacheable; leave off in batch runs).
         adjoint: a diffrax adjoint for gradients (default
-            ``diffrax.RecursiveCheckpointAdjoint()``: exact reverse-mode gradients).
+            ``diffrax.RecursiveCheckpointAdjoint()``: exact reverse-mode gradients;
+            for forward mode, ``jax.jvp`` / ``jax.jacfwd`` through ``simulate``,
+            pass ``diffrax.ForwardMode()``, as examples/system_identification.py
+            does).
         throw: raise ``RuntimeError`` on failure (under an outer jit an equinox
             runtime error); use ``throw=False`` under ``vmap`` and read ``result``.
 
