@@ -140,10 +140,7 @@ def pd_policy(env, state, target, T_ff, feedforward):
     def split(f):
         return jnp.stack([f[1], f[0], -f[1], -f[0]])
 
-    tip = env.tip_position(state)
-    # world tip velocity: the tip's body twist, linear part, body -> world
-    eta = sj.screw_velocities(env.linkage, state.q, state.qd)
-    v = env.tip_pose(state)[:3, :3] @ eta[env.linkage.tip_point(1), 3:]
+    tip, v = env.tip_position(state), env.tip_velocity(state)
     f = KP * (target[:2] - tip[:2]) - KD * v[:2]
     base = feedforward * T_ff + (1.0 - feedforward) * PRETENSION * jnp.ones(4)
     return jnp.maximum(base + split(f) / 2, 0.0)

@@ -189,3 +189,18 @@ def test_environment_is_a_pytree_for_domain_randomisation(arm):
     speed = np.abs(np.asarray(out.qd)).max(axis=1)
     assert np.all(np.asarray(out.result) == 0)
     assert speed[1] < speed[0], speed
+
+
+def test_observations_agree_with_the_kinematics(env, arm):
+    """tip_velocity is the time derivative of tip_position along qd (a JVP of the
+    forward kinematics: 1e-12 m/s); cable_lengths and strains have one entry per
+    cable / per point; the flat observation stacks q, qd, tip position, velocity."""
+    s = env.reset(jax.random.key(3))
+    s = eqx.tree_at(lambda x: x.qd, s, jax.random.normal(jax.random.key(4), (4,)))
+    _, v_jvp = jax.jvp(lambda q: sj.tip_pose(arm, q)[:3, 3], (s.q,), (s.qd,))
+    np.testing.assert_allclose(env.tip_velocity(s), v_jvp, rtol=0, atol=1e-12)
+    assert env.cable_lengths(s).shape == (4,)
+    assert env.strains(s).shape[1] == 6
+    obs = env.observation(s)
+    np.testing.assert_array_equal(obs[:4], s.q)
+    np.testing.assert_allclose(obs[-3:], v_jvp, rtol=0, atol=1e-12)

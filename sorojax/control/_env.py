@@ -36,7 +36,7 @@ from ..integrate._simulate import (
     _vector_field,
     simulate,
 )
-from ..kinematics._api import screw_strains, tip_pose
+from ..kinematics._api import screw_strains, screw_velocities, tip_pose
 from ..model._actuation import Cable
 from ..model._linkage import Linkage
 from ..model._precompute import precompute
@@ -320,6 +320,12 @@ class Environment(eqx.Module):
         """World position of link ``link``'s tip [m]."""
         return self.tip_pose(state, link)[:3, 3]
 
+    def tip_velocity(self, state: EnvState, link: int = -1) -> Float[Array, " 3"]:
+        """World linear velocity of link ``link``'s tip [m/s]."""
+        point = self.linkage.tip_point(self.linkage.n_links if link == -1 else link)
+        eta = screw_velocities(self.linkage, state.q, state.qd)[point]
+        return self.tip_pose(state, link)[:3, :3] @ eta[3:]
+
     def strains(self, state: EnvState) -> Float[Array, "n_points 6"]:
         """Screw strains at every significant point (angular first)."""
         return screw_strains(self.linkage, state.q)
@@ -329,8 +335,10 @@ class Environment(eqx.Module):
         return cable_lengths(self.linkage, state.q)
 
     def observation(self, state: EnvState) -> Float[Array, " n_obs"]:
-        """A flat observation: ``[q, qd, tip position]``."""
-        return jnp.concatenate([state.q, state.qd, self.tip_position(state)])
+        """A flat observation: ``[q, qd, tip position, tip velocity]``."""
+        return jnp.concatenate(
+            [state.q, state.qd, self.tip_position(state), self.tip_velocity(state)]
+        )
 
 
 def _held_inputs(u0, u1, t0, period, ramp, t):
