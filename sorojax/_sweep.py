@@ -9,9 +9,10 @@ an independent program (one asynchronous dispatch per device, compiled once per
 device), so a solver loop ends per device, without collectives: a sharded ``jit``
 of the same vmap kept the loops global and stalled on 2 CPU host devices at 1024
 cases, and ``pmap`` / ``shard_map`` trip lineax's structure check inside the
-statics solve (sharded abstract values) in JAX 0.10 and, with ``chunk``, run in
-chunks of that many cases per device one after another (``lax.map`` over chunks:
-bounded memory for very large sweeps on an accelerator). The batch is padded to a
+statics solve (sharded abstract values) in JAX 0.10. With ``chunk``, each device
+runs its cases in chunks of that many, one after another (``lax.map`` over chunks:
+each chunk's loops end with its own slowest case, and memory stays bounded for very
+large sweeps on an accelerator). The batch is padded to a
 whole number of chunks with copies of its last case and the padding is dropped
 from the result.
 
@@ -85,7 +86,7 @@ def sweep(
 
     Returns:
         ``fn``'s outputs stacked along a leading axis, one row per case (on the
-        devices, sharded; ``np.asarray`` gathers them).
+        first device).
 
     Raises:
         ValueError: no cases, leading axes that differ, or ``chunk`` < 1.
@@ -103,12 +104,8 @@ def sweep(
     if chunk is not None and chunk < 1:
         raise ValueError(f"sweep: chunk = {chunk}; give a positive number of cases.")
     n_dev = len(devices)
-    per_pass = n_dev * (chunk if chunk is not None else 1)
-    if chunk is None:
-        # the batch split evenly over the devices, the rest padded
-        padded = -(-n // n_dev) * n_dev
-    else:
-        padded = -(-n // per_pass) * per_pass
+    per_pass = n_dev * (1 if chunk is None else chunk)
+    padded = -(-n // per_pass) * per_pass  # whole passes of every device
     if padded != n:
         args = jax.tree.map(
             lambda x: jnp.concatenate(

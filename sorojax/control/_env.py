@@ -26,17 +26,16 @@ from jaxtyping import Array, ArrayLike, Float, Int, PRNGKeyArray
 
 from .._results import RESULTS
 from ..dynamics._actuation import cable_lengths
-from ..dynamics._eom import consistent_velocities
 from ..integrate._simulate import (
     _initial_state,
-    _input_function,
     _make_solver,
-    _needs_inputs,
     _root_finder_tolerances,
     _vector_field,
+    consistent_start,
     simulate,
 )
-from ..kinematics._api import screw_strains, screw_velocities, tip_pose
+from ..kinematics._api import screw_strains, tip_pose
+from ..kinematics._recursion import poses_and_jacobians
 from ..model._actuation import Cable
 from ..model._linkage import Linkage
 from ..model._precompute import precompute
@@ -237,25 +236,14 @@ class Environment(eqx.Module):
             solver=self.solver,
             rtol=self.rtol,
             atol=self.atol,
-            dt0=self.dt,
-            adaptive=self.dt is None,
             max_steps=self.max_steps,
             u=u1 if u_fn is None else u_fn,
             adjoint=self.adjoint,
             throw=False,
         )
         ok = tr.result == RESULTS.successful
-        # where, not the raw values: a failed member's inf must not reach the
-        # others' gradients (nor its own: the untaken branch is finite)
-        q = jnp.where(ok, jnp.nan_to_num(tr.q[-1]), state.q)
-        qd = jnp.where(ok, jnp.nan_to_num(tr.qd[-1]), state.qd)
-        return EnvState(
-            q=q,
-            qd=qd,
-            t=jnp.where(ok, t1, state.t),
-            u=u1,
-            result=jnp.asarray(tr.result._value, jnp.int32),
-            steps=jnp.asarray(tr.num_steps, jnp.int32),
+        return _advanced(
+            state, ok, tr.q[-1], tr.qd[-1], t1, u1, tr.result._value, tr.num_steps
         )
 
     def _fixed_steps(self, state, u_fn, u1, t1) -> EnvState:
@@ -275,12 +263,7 @@ class Environment(eqx.Module):
         t0 = state.t
         _, y0, _ = _initial_state(lk, state.q, state.qd, t0, t1, u_fn, u_const, None)
         data = precompute(lk)
-        n = lk.n_dof
-        if _needs_inputs(lk):
-            qd0 = consistent_velocities(
-                lk, data, t0, y0[:n], y0[n:], _input_function(u_fn, u_const)
-            )
-            y0 = jnp.concatenate([y0[:n], qd0])
+        y0 = consistent_start(lk, data, t0, y0, u_fn, u_const)
         term = _vector_field(lk, None, u_fn)
         args = (data, u_const)
         dt = jnp.asarray(self.dt, dtype)
@@ -302,14 +285,8 @@ class Environment(eqx.Module):
             RESULTS.failed._value,
             jnp.where(ok, 0, RESULTS.nonlinear_divergence._value),
         )
-        return EnvState(
-            q=jnp.where(ok, jnp.nan_to_num(y[:n]), state.q),
-            qd=jnp.where(ok, jnp.nan_to_num(y[n:]), state.qd),
-            t=jnp.where(ok, t1, state.t),
-            u=u1,
-            result=jnp.asarray(code, jnp.int32),
-            steps=jnp.asarray(n_sub, jnp.int32),
-        )
+        n = lk.n_dof
+        return _advanced(state, ok, y[:n], y[n:], t1, u1, code, n_sub)
 
     # ------------------------------------------------------------ observations
     def tip_pose(self, state: EnvState, link: int = -1) -> Float[Array, "4 4"]:
@@ -323,8 +300,8 @@ class Environment(eqx.Module):
     def tip_velocity(self, state: EnvState, link: int = -1) -> Float[Array, " 3"]:
         """World linear velocity of link ``link``'s tip [m/s]."""
         point = self.linkage.tip_point(self.linkage.n_links if link == -1 else link)
-        eta = screw_velocities(self.linkage, state.q, state.qd)[point]
-        return self.tip_pose(state, link)[:3, :3] @ eta[3:]
+        g, J = poses_and_jacobians(precompute(self.linkage), state.q)  # one pass
+        return g[point, :3, :3] @ (J[point] @ state.qd)[3:]  # body twist -> world
 
     def strains(self, state: EnvState) -> Float[Array, "n_points 6"]:
         """Screw strains at every significant point (angular first)."""
@@ -339,6 +316,22 @@ class Environment(eqx.Module):
         return jnp.concatenate(
             [state.q, state.qd, self.tip_position(state), self.tip_velocity(state)]
         )
+
+
+def _advanced(state, ok, q, qd, t1, u1, code, steps) -> EnvState:
+    """The state after a period: the integration's end where ``ok``, else ``state``.
+
+    ``where``, not the raw values: a failed member's inf must not reach the
+    others' gradients (nor its own: the untaken branch is finite).
+    """
+    return EnvState(
+        q=jnp.where(ok, jnp.nan_to_num(q), state.q),
+        qd=jnp.where(ok, jnp.nan_to_num(qd), state.qd),
+        t=jnp.where(ok, t1, state.t),
+        u=u1,
+        result=jnp.asarray(code, jnp.int32),
+        steps=jnp.asarray(steps, jnp.int32),
+    )
 
 
 def _held_inputs(u0, u1, t0, period, ramp, t):
@@ -372,17 +365,12 @@ def rollout(
     if callable(actions_or_policy):
         if n_steps is None:
             raise ValueError("rollout with a policy needs n_steps.")
-        policy = actions_or_policy
+        policy, xs = actions_or_policy, None
+    else:
+        policy, xs = None, jnp.asarray(actions_or_policy)
 
-        def body(s, _):
-            s1 = env.step(s, policy(s))
-            return s1, s1
-
-        return jax.lax.scan(body, state, None, length=n_steps)
-    actions = jnp.asarray(actions_or_policy)
-
-    def body_a(s, a):
-        s1 = env.step(s, a)
+    def body(s, a):
+        s1 = env.step(s, a if policy is None else policy(s))
         return s1, s1
 
-    return jax.lax.scan(body_a, state, actions)
+    return jax.lax.scan(body, state, xs, length=n_steps)

@@ -234,6 +234,20 @@ def _rates(linkage: Linkage, data, t, y, u_fn, u_const, generalized_force):
     return jnp.concatenate([st.qd, st.qdd]), st.M, st
 
 
+def consistent_start(linkage: Linkage, data, t0, y0, u_fn, u_const) -> Array:
+    """``y0 = (q, qd)`` with qd projected onto the velocity constraints.
+
+    Prescribed coordinates and closed loops; unchanged for a linkage without inputs.
+    """
+    if not _needs_inputs(linkage):
+        return y0
+    n = y0.shape[0] // 2
+    qd0 = consistent_velocities(
+        linkage, data, t0, y0[:n], y0[n:], _input_function(u_fn, u_const)
+    )
+    return jnp.concatenate([y0[:n], qd0])
+
+
 def _vector_field(linkage: Linkage, generalized_force, u_fn) -> MechanicalTerm:
     """The dynamics as a diffrax term: ``(qd, qdd)`` and the stiff part (M, K, D)."""
 
@@ -293,12 +307,7 @@ def _simulate(
     u_const: Array,
 ) -> Trajectory:
     data = precompute(linkage)
-    if _needs_inputs(linkage):
-        n = y0.shape[0] // 2
-        qd0 = consistent_velocities(
-            linkage, data, t0, y0[:n], y0[n:], _input_function(u_fn, u_const)
-        )
-        y0 = jnp.concatenate([y0[:n], qd0])
+    y0 = consistent_start(linkage, data, t0, y0, u_fn, u_const)
     sol = diffrax.diffeqsolve(
         _vector_field(linkage, generalized_force, u_fn),
         solver,

@@ -376,16 +376,13 @@ def _equilibrium_tangent(linkage, q, u, lam, t):
     ``x = (q_free, lam)``, with least-squares multipliers when ``lam`` is None.
     """
     n_c = linkage.n_constraints
-    J_u, free, _ = _reference_tangent(linkage, q, np.zeros(n_c), u, t)
-    if not n_c:
-        return J_u, free, q[free]
-    lam = (
-        _multipliers(linkage, q, u, t, J_u, free)
-        if lam is None
-        else np.asarray(lam, dtype=float)
-    )
-    # the multiplier columns do not depend on lam; the q block does (curvature)
-    J_u, _, _ = _reference_tangent(linkage, q, lam, u, t)
+    if n_c and lam is None:
+        # the multiplier columns do not depend on lam (the q block does: the
+        # constraint curvature), so a tangent at lam = 0 gives the least squares
+        J_0, free, _ = _reference_tangent(linkage, q, np.zeros(n_c), u, t)
+        lam = _multipliers(linkage, q, u, t, J_0, free)
+    lam = np.zeros(0) if not n_c else np.asarray(lam, dtype=float)
+    J_u, free, _ = _reference_tangent(linkage, q, lam, u, t)
     return J_u, free, np.concatenate([q[free], lam])
 
 
@@ -444,26 +441,23 @@ def _estimate(linkage, q, tangent, quantity, length) -> DiscretizationEstimate:
     orders = division_orders(linkage)
     index = _coefficient_index(linkage)
 
-    def smaller(drop):  # q of the model without coefficients {(key, m): c >= c0}
-        dropped = [
-            j for (i, k, m, c), j in index.items() if c >= drop.get((i, k, m), 99)
-        ]
+    def smaller(down):  # q of the model with orders lowered by {(i, k, m): steps}
+        lowered = {
+            (i, k): tuple(o[m] - down.get((i, k, m), 0) for m in range(6))
+            for (i, k), o in orders.items()
+        }
+        dropped = _dropped(index, lowered)
         if tangent is not None:
             return _galerkin(*tangent, q, dropped)
         out = q.copy()
         out[dropped] = 0.0
         return out
 
-    keys, qs = [], []
-
-    top = {
-        (i, k, m): o[m] for (i, k), o in orders.items() for m in range(6) if o[m] >= 0
-    }
-    for (i, k, m), o in top.items():
-        keys.append((i, k, MODE_NAMES[m]))
-        qs.append(smaller({(i, k, m): o}))
-    q_all = smaller(top)  # top coefficient dropped, top two dropped
-    q_two = smaller({key: max(o - 1, 0) for key, o in top.items()})
+    active = [(i, k, m) for (i, k), o in orders.items() for m in range(6) if o[m] >= 0]
+    keys = [(i, k, MODE_NAMES[m]) for i, k, m in active]
+    qs = [smaller({key: 1}) for key in active]
+    q_all = smaller(dict.fromkeys(active, 1))  # top coefficient dropped
+    q_two = smaller(dict.fromkeys(active, 2))  # top two dropped
     errs = _qoi_error(
         linkage, np.asarray(qs + [q_all, q_two]), jnp.asarray(q), length, quantity
     )
