@@ -129,9 +129,12 @@ from .model import (
 from .model import (
     RigidLink as RigidLink,
 )
+from .model import SectionProperties as SectionProperties
 from .model import (
     SoftLink as SoftLink,
 )
+from .model import rectangle_torsion_constant as rectangle_torsion_constant
+from .model import sorosim_mechanics as sorosim_mechanics
 from .model import (
     translation as translation,
 )

@@ -106,11 +106,13 @@ def free_fall_rod(
     L 0.5 m along x, circular radius tapering linearly 2 -> 1 cm, E 1 MPa, poisson
     0.5, rho 1000 kg/m^3, material damping ``eta`` [Pa s]; torsion and both bendings
     (``modes``) with Legendre order ``order`` (cubic: 12 DoF); gravity 9.81 m/s^2 along
-    -z. Start it from :func:`free_fall_q0` (pre-bent 1 rad/m about y) at rest.
+    -z; SoRoSim's section model (no shear correction, as the tutorial and the peer
+    comparisons in benchmarks/peers.py). Start it from :func:`free_fall_q0` (pre-bent
+    1 rad/m about y) at rest.
     """
     div = Division(
         0.5,
-        CircularSection((0.02, 0.01)),
+        CircularSection((0.02, 0.01), shear_coefficient=1.0),
         LegendreBasis(modes, order),
         n_gauss=n_gauss,
     )

@@ -8,8 +8,9 @@ Conventions (shared with the simulator):
     * The rod axis is the local x axis; planar problems bend in the x-y plane.
     * Cross-section quantities: ``A`` area, ``I`` second moment about the
       bending (z) axis, ``E`` Young's modulus, ``G`` shear modulus.
-    * Shear stiffness is the plain ``G * A`` (no shear-correction factor), to
-      match the simulator's ``Sigma = diag(GJ, EIy, EIz, EA, GA, GA)``.
+    * Shear stiffness is ``G * A`` and ``G`` enters nowhere else: pass the effective
+      ``k G`` for a shear coefficient ``k`` (sorojax's shaped sections use Cowper's
+      ``k`` by default: ``Sigma = diag(GJ, EIy, EIz, EA, k GA, k GA)``).
 
 Contents:
     elastica_cantilever_tip_load            -- exact elliptic-integral elastica

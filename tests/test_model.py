@@ -102,12 +102,13 @@ def test_stiffness_and_damping_of_a_uniform_rod():
     lk = sj.Linkage([_rod()])
     G = E / (2 * (1 + nu))
     A, I = math.pi * r**2, math.pi * r**4 / 4
+    k = 6 * (1 + nu) / (7 + 6 * nu)  # Cowper's shear coefficient of a circle
     # Order-0 basis, q dimensionless (angular rows / L): K = L * S Sigma S.
     k_expected = np.array(
-        [G * 2 * I / L, E * I / L, E * I / L, E * A * L, G * A * L, G * A * L]
+        [G * 2 * I / L, E * I / L, E * I / L, E * A * L, k * G * A * L, k * G * A * L]
     )
     d_expected = eta * np.array(
-        [2 * I / L, 3 * I / L, 3 * I / L, 3 * A * L, A * L, A * L]
+        [2 * I / L, 3 * I / L, 3 * I / L, 3 * A * L, k * A * L, k * A * L]
     )
     np.testing.assert_allclose(np.diag(sj.stiffness_matrix(lk)), k_expected, rtol=1e-12)
     np.testing.assert_allclose(np.diag(sj.damping_matrix(lk)), d_expected, rtol=1e-12)

@@ -69,3 +69,6 @@ from ._section import (
 from ._section import (
     RectangularSection as RectangularSection,
 )
+from ._section import SectionProperties as SectionProperties
+from ._section import rectangle_torsion_constant as rectangle_torsion_constant
+from ._section import sorosim_mechanics as sorosim_mechanics

@@ -230,7 +230,7 @@ def precompute(linkage: Linkage) -> LinkageData:
                 xr_z = xr_all[len(X1) :].reshape(n_steps, nz, 6)
                 Sigma, Ms, Ups = jax.vmap(
                     lambda x, sec=div.section, m=mat, G=G: section_matrices(
-                        sec, x, m.E, G, m.rho, m.eta
+                        sec, x, m.E, G, m.rho, m.eta, m.poisson
                     )
                 )(jnp.asarray(X1))
                 wL = jnp.asarray(dl.w) * L
