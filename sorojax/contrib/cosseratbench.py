@@ -1,0 +1,805 @@
+"""sorojax as a solver of the rod benchmark cosseratbench (its plugin contract 0.3).
+
+:class:`SorojaxSolver` turns a ``cosseratbench.Scenario`` into one GVS model per rod,
+solves it and samples the solution at the benchmark's material nodes. The benchmark
+finds it through the entry point ``cosseratbench.solvers: sorojax`` (pyproject.toml);
+this module is loaded only then, or by its test, so it imports cosseratbench at the
+top. What is not modelled (contact, a driven start, a displaced driven end, a Poisson
+ratio above 0.5) raises ``NotImplementedError`` (reported "unsupported").
+
+Model per rod (from the scenario's physics; :meth:`SorojaxSolver.settings` reports it):
+
+- **Frame.** Each rod is modelled in its own frame: origin at its start, local x
+  along the centre line's tangent there, local y the scenario's ``normal`` projected
+  off it, so that ``d1 = R(X) e_y`` starts as ``Rod.directors``.
+- **Strain modes** (DESIGN.md section 2: model no more than the scene needs). Bending
+  about the normal of the plane that holds the centre line, the loads and gravity
+  when there is one (planar motion), else about both section axes plus torsion (also
+  when an end is turned). Stretch where the rod starts stretched or its axial strain
+  ``(|loads| + weight) / EA`` reaches :data:`EFFECT_TOL`; shear where a cantilever's
+  shear-to-bending compliance ``3 E I / (k G A L^2)`` reaches it (Cowper's ``k``,
+  sorojax's default circle). A mode left out changes the results by less.
+- **Orders** (Legendre): bending ``clip(round(n_elements / divisor), lo, hi)``
+  (:data:`ORDER_RULES`: ``-v resolution`` shows the convergence); torsion a single
+  uniform coordinate in quasi-static scenes (the twist of a round Kirchhoff rod under
+  end loads is uniform along it); stretch and shear the bending order in statics,
+  :data:`LOW_ORDER` in dynamics.
+- **Ends.** A clamped start is the fixed base; a pinned start a revolute joint about
+  the plane normal (planar) or a spherical joint; a free start a planar or free
+  joint. A pinned end is a spherical closed-loop joint to the ground, a clamped end a
+  fixed one. An end turned about a fixed axis (``end_motion``) carries a massless
+  rigid link on a revolute joint about that axis whose angle is prescribed (minus the
+  motion's), closed to the ground by a prismatic closed-loop joint along the axis when
+  the end ``slides_along`` it (a fixed one otherwise): the rod's end turns with the
+  motion and slides freely under its load. Point loads are world-frame dead forces.
+- **Initial shape.** The strain coordinates are fitted (least squares,
+  :func:`sorojax.strain_coordinates`) to the curvature and stretch of the centre line
+  (with its ``rest_arc_length``); closed-loop targets are the fitted end poses.
+
+Solvers:
+
+- quasi-static scenes with constant loads: :func:`sorojax.solve_statics`; frame 0 is
+  the initial shape, every later frame the equilibrium (the loads do not change).
+  Were that equilibrium unstable, the damped dynamics below runs instead;
+- quasi-static scenes with a driven end: dynamics with mass-proportional damping
+  ``-c M_s eta`` per unit length at every rod point, ``c = 2
+  scenario.slowest_frequency()`` (the benchmark's built-in adapters' choice, which
+  its twist measurement assumes);
+- dynamic scenes: :func:`sorojax.simulate` with no added damping.
+
+Dynamics run ``FRAME_CHUNK`` frames per call of one compiled program whose shapes
+depend on neither ``duration`` nor ``n_frames`` (times are traced, a last chunk
+repeats its final time), so the benchmark's untimed warm-up call compiles all its
+timed call runs. Rods whose local models coincide (the twist scene's six, which
+differ only in the angle they are turned to) share one model and run as one
+``jax.vmap`` batch. Everything runs in float64 (``jax.enable_x64`` for the call).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from cosseratbench import (
+    Capability,
+    Diverged,
+    End,
+    EndCondition,
+    Scenario,
+    Trajectory,
+)
+from cosseratbench.scenario import Motion, Rod
+
+import sorojax as sj
+from sorojax.model._layout import ROD
+
+MODE_NAMES = ("torsion", "bend_y", "bend_z", "stretch", "shear_y", "shear_z")
+
+EFFECT_TOL = 5e-4
+"""A strain mode is modelled when its estimated relative effect reaches this."""
+
+ORDER_RULES: dict[str, tuple[float, int, int]] = {
+    # method: (n_elements per polynomial order, lowest order, highest order)
+    "statics": (5.0, 2, 16),
+    "dynamics": (6.0, 4, 12),
+}
+"""Bending order ``clip(round(n_elements / divisor), lowest, highest)`` per method.
+
+Measured at the benchmark's default resolutions: the catenary's sag converges to
+4e-4 of the elastic catenary (its bending boundary layers at the pins) by order 10;
+the pendulum's period to 2.1e-5 (the benchmark's own nonlinear floor, 2e-5) by order
+6 and its amplitude drift to 4e-6 at order 8; the twisted rods' critical twist is
+off by 3.6% / 0.56% / 0.095% / 0.002% at orders 6 / 7 / 8 / 10 (statics stability of
+the straight rod: the buckling mode turns about 2.5 times along the rod).
+"""
+
+LOW_ORDER = 1
+"""Order of stretch and shear in dynamics: they follow the tension, which is smooth,
+and their high-order modes are the fastest vibrations (they set an explicit step)."""
+
+DYNAMIC_SOLVER = "tsit5"
+"""Integrator of the dynamics, damped or not: explicit and adaptive. The implicit
+Rosenbrock ``"ros34pw2"`` takes 17x more steps on the twisted rods (their closed
+loop's Baumgarte rows are not in its W matrix), Kvaerno3 100x the time."""
+
+SOLVER_RTOL = 1e-4
+"""Relative tolerance at ``time_step_scale = 1`` (atol: :data:`ATOL_FACTOR` of it).
+The fast modes bound the explicit steps there already: 1e-6 changes the pendulum's
+metrics by < 3e-9 and the twist's critical-twist error by 3e-9."""
+
+ATOL_FACTOR = 1e-4
+
+SOLVER_ORDER = 5
+"""Order of the local error of Tsit5's step: rtol scales by time_step_scale**5."""
+
+FRAME_CHUNK = 32
+"""Frames integrated per compiled call (one call and one step-size start per chunk)."""
+
+
+# --------------------------------------------------------------------------- plan
+@dataclasses.dataclass(frozen=True)
+class _Plan:
+    """The static modelling choices for one rod."""
+
+    modes: tuple[int, ...]
+    orders: tuple[int, ...]
+    normal_local: tuple[float, float, float] | None  # plane normal, local frame
+    start_joint: str  # N R S A F
+    end_loop: str | None  # None S N P
+    driven: bool  # end turned by a prescribed coordinate
+    method: str  # "statics", "dynamics" or "damped"
+
+    @property
+    def n_strain_dof(self) -> int:
+        """Strain coordinates of the rod."""
+        return sum(o + 1 for m, o in zip(self.modes, self.orders, strict=True) if m)
+
+    @property
+    def n_dof(self) -> int:
+        """All coordinates (joint, strains, the driven end's prescribed angle)."""
+        joint = {"N": 0, "R": 1, "S": 3, "A": 3, "F": 6}[self.start_joint]
+        return joint + self.n_strain_dof + int(self.driven)
+
+
+def _unit(v) -> np.ndarray:
+    v = np.asarray(v, dtype=float)
+    n = np.linalg.norm(v)
+    if not n > 0:
+        raise ValueError(f"cannot normalise the zero vector {v!r}")
+    return v / n
+
+
+def _rest_arc(rod: Rod) -> np.ndarray:
+    if rod.rest_arc_length is not None:
+        return np.asarray(rod.rest_arc_length, dtype=float)
+    pts = np.asarray(rod.centerline, dtype=float)
+    return np.concatenate(
+        [[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))]
+    )
+
+
+def _rotation(w: np.ndarray) -> np.ndarray:
+    """Rotation matrix of the rotation vector ``w`` (Rodrigues)."""
+    a = float(np.linalg.norm(w))
+    if a < 1e-300:
+        return np.eye(3)
+    K = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]]) / a
+    return np.eye(3) + math.sin(a) * K + (1 - math.cos(a)) * K @ K
+
+
+def _turn(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rotation vector of the smallest rotation taking unit ``a`` to unit ``b``."""
+    axis = np.cross(a, b)
+    sin, cos = np.linalg.norm(axis), float(a @ b)
+    if sin < 1e-300:
+        return np.zeros(3)
+    return axis / sin * math.atan2(sin, cos)
+
+
+def _frame(rod: Rod) -> tuple[np.ndarray, np.ndarray]:
+    """``(p0, R0)``: the rod's start and its frame (x tangent, y the projected normal).
+
+    The tangent at the start is the first chord turned back by half its turn to the
+    next chord (a chord is the tangent at its middle): second-order accurate, so
+    that the fitted rod ends where the centre line does.
+    """
+    pts = np.asarray(rod.centerline, dtype=float)
+    t0 = _unit(pts[1] - pts[0])
+    if len(pts) > 2:
+        arc = _rest_arc(rod)
+        t1 = _unit(pts[2] - pts[1])
+        rate = _turn(t0, t1) / ((arc[2] - arc[0]) / 2)
+        t0 = _rotation(-rate * (arc[1] - arc[0]) / 2) @ t0
+    normal = np.asarray(rod.normal, dtype=float)
+    d1 = normal - (normal @ t0) * t0
+    if np.linalg.norm(d1) < 1e-12:
+        raise ValueError("Rod.normal is parallel to the rod's first segment")
+    d1 = _unit(d1)
+    return pts[0], np.stack([t0, d1, np.cross(t0, d1)], axis=1)
+
+
+def _shear_coefficient(nu: float) -> float:
+    """Cowper's shear coefficient of a solid circle (sorojax's default section)."""
+    return 6.0 * (1.0 + nu) / (7.0 + 6.0 * nu)
+
+
+def _poisson(rod: Rod) -> float:
+    m = rod.material
+    nu = m.youngs_modulus / (2.0 * m.shear_modulus) - 1.0
+    if not -1.0 < nu <= 0.5 + 1e-12:
+        raise NotImplementedError(
+            f"Rod.material: shear_modulus = {m.shear_modulus} Pa with youngs_modulus "
+            f"= {m.youngs_modulus} Pa means a Poisson ratio {nu:.4g} outside sorojax's "
+            "isotropic range (-1, 0.5]; give shear_modulus >= youngs_modulus / 3."
+        )
+    return min(nu, 0.5)
+
+
+def _motion_axis(motion: Motion) -> np.ndarray:
+    """The fixed world axis a motion turns about, or a clear NotImplementedError."""
+    d = np.asarray(motion.displacement, dtype=float)
+    if np.abs(d).max() > 0.0:
+        raise NotImplementedError(
+            "a driven end that is displaced (Motion.displacement != 0) is outside "
+            "this adapter's models: only rotation about a fixed axis is prescribed."
+        )
+    r = np.asarray(motion.rotation, dtype=float)
+    if motion.slides_along is not None:
+        return motion.axis
+    k = int(np.argmax(np.linalg.norm(r, axis=1)))
+    if np.linalg.norm(r[k]) == 0.0:
+        return np.array([1.0, 0.0, 0.0])
+    axis = _unit(r[k])
+    across = r - np.outer(r @ axis, axis)
+    if np.abs(across).max() > 1e-12:
+        raise NotImplementedError(
+            "a driven end whose rotation axis changes over time is outside this "
+            "adapter's models: give rotations about one fixed axis."
+        )
+    return axis
+
+
+def _order(method: str, n_elements: int) -> int:
+    divisor, lo, hi = ORDER_RULES["statics" if method == "statics" else "dynamics"]
+    return int(min(max(round(n_elements / divisor), lo), hi))
+
+
+def _plan(scenario: Scenario, rod: Rod, n_elements: int) -> _Plan:
+    """Choose the modes, orders, joints and solver for ``rod`` (see the module text)."""
+    if rod.start_motion is not None:
+        raise NotImplementedError(
+            "Rod.start_motion: a driven start is outside this adapter's models (the "
+            "rod is rooted at its start); drive the end instead."
+        )
+    p0, R0 = _frame(rod)
+    pts = (np.asarray(rod.centerline, dtype=float) - p0) @ R0
+    forces = [np.asarray(ld.force, dtype=float) @ R0 for ld in rod.loads]
+    gravity = np.asarray(scenario.gravity, dtype=float) @ R0
+    driven = rod.end_motion is not None
+    if driven and rod.end is not EndCondition.CLAMPED:  # the scenario checks it too
+        raise NotImplementedError("Rod.end_motion needs a clamped end.")
+    if driven:
+        _motion_axis(rod.end_motion)  # raises for what is not modelled
+
+    # ------------------------------------------------ planar? (plane holds local x)
+    across = [v[1:] for v in (*pts[1:], *forces, gravity) if np.linalg.norm(v) > 0]
+    normal_local = None
+    if not driven:
+        W = np.asarray(across).reshape(-1, 2)
+        W = W[np.linalg.norm(W, axis=1) > 1e-12 * max(1.0, np.abs(W).max(initial=0))]
+        if len(W) == 0:
+            normal_local = (0.0, 0.0, 1.0)
+        else:
+            _, s, Vt = np.linalg.svd(W / np.linalg.norm(W, axis=1, keepdims=True))
+            if len(s) == 1 or s[1] <= 1e-9 * s[0]:
+                n2 = Vt[-1] if len(s) > 1 else np.array([-Vt[0, 1], Vt[0, 0]])
+                normal_local = (0.0, float(n2[0]), float(n2[1]))
+    planar = normal_local is not None
+
+    # ------------------------------------------------------------------ modes
+    m = rod.material
+    E, G, rho = m.youngs_modulus, m.shear_modulus, m.density
+    A, I = rod.area, rod.second_moment_of_area
+    L = rod.length
+    nu = _poisson(rod)
+    arc = _rest_arc(rod)
+    seg = np.linalg.norm(np.diff(np.asarray(rod.centerline, float), axis=0), axis=1)
+    prestretch = float(np.abs(seg / np.diff(arc) - 1.0).max())
+    axial = (
+        sum(np.linalg.norm(f) for f in forces) + rho * A * L * np.linalg.norm(gravity)
+    ) / (E * A)
+    stretch = prestretch >= EFFECT_TOL or axial >= EFFECT_TOL
+    shear = 3.0 * E * I / (_shear_coefficient(nu) * G * A * L**2) >= EFFECT_TOL
+    if planar:
+        n = np.asarray(normal_local)
+        bend_y = abs(n[1]) > 1e-12
+        bend_z = abs(n[2]) > 1e-12
+        modes = (0, int(bend_y), int(bend_z), int(stretch), int(shear and bend_z))
+        modes = (*modes, int(shear and bend_y))
+    else:
+        modes = (1, 1, 1, int(stretch), int(shear), int(shear))
+
+    # ------------------------------------------------------------------ method
+    if driven:
+        method = "damped" if scenario.quasi_static else "dynamics"
+    else:
+        method = "statics" if scenario.quasi_static else "dynamics"
+    order = _order(method, n_elements)
+    # Torsion of a round rod without distributed moments is uniform at equilibrium
+    # (Kirchhoff: the moment about the tangent is constant), so quasi-static scenes
+    # give it one coordinate; stretch and shear get LOW_ORDER in dynamics.
+    per_mode = (
+        0 if scenario.quasi_static else order,
+        order,
+        order,
+        *(3 * (order if method == "statics" else min(order, LOW_ORDER),)),
+    )
+    orders = tuple(o if f else 0 for f, o in zip(modes, per_mode, strict=True))
+
+    # ------------------------------------------------------------------- ends
+    start = {
+        EndCondition.CLAMPED: "N",
+        EndCondition.PINNED: "R" if planar else "S",
+        EndCondition.FREE: "A" if planar else "F",
+    }[rod.start]
+    if rod.end is EndCondition.FREE:
+        end_loop = None
+    elif rod.end is EndCondition.PINNED:
+        end_loop = "S"
+    elif driven and rod.end_motion.slides_along is not None:
+        end_loop = "P"
+    else:
+        end_loop = "N"
+    return _Plan(modes, orders, normal_local, start, end_loop, driven, method)
+
+
+# ------------------------------------------------------------------ initial shape
+def _strain_tables(rod: Rod, R0: np.ndarray):
+    """Tabulated curvature (local frame, at the vertices) and stretch (at segments).
+
+    The centre line's frame is carried by the smallest rotation from one segment to
+    the next (no torsion), starting at ``R0``; the curvature at a vertex is that
+    rotation (in the local frame of the segment before) over the rest arc length
+    between the segments' middles.
+    """
+    P = np.asarray(rod.centerline, dtype=float)
+    S = _rest_arc(rod)
+    D = np.diff(P, axis=0)
+    ds = np.diff(S)
+    length = np.linalg.norm(D, axis=1)
+    t = D / length[:, None]
+    s_mid = (S[:-1] + S[1:]) / 2
+    stretch = length / ds
+    kappa = np.zeros((max(len(t) - 1, 0), 3))
+    # The frame on the first chord: R0 turned onto it (R0's x is the start tangent).
+    R = _rotation(_turn(R0[:, 0], t[0])) @ R0
+    for j in range(len(t) - 1):
+        w = _turn(t[j], t[j + 1])
+        kappa[j] = R.T @ w / (s_mid[j + 1] - s_mid[j])
+        R = _rotation(w) @ R
+    if len(kappa) == 0:  # a straight two-point centre line
+        return np.array([0.0, S[-1]]), np.zeros((2, 3)), s_mid, stretch
+    return S[1:-1], kappa, s_mid, stretch
+
+
+def _tabulated_strain(s_k, kappa, s_n, stretch, s):
+    """Strain ``(kx, ky, kz, gx, 0, 0)`` at arc length ``s`` from the tables."""
+    k = [jnp.interp(s, s_k, kappa[:, i]) for i in range(3)]
+    g = jnp.interp(s, s_n, stretch)
+    z = jnp.zeros_like(g)
+    return jnp.stack([*k, g, z, z])
+
+
+@eqx.filter_jit
+def _fit(sampler: sj.Linkage, strain) -> jax.Array:
+    return sj.strain_coordinates(sampler, strain, link=1)
+
+
+@eqx.filter_jit
+def _sample(sampler: sj.Linkage, q, nodes, mids):
+    g = sj.forward_kinematics(sampler, q)
+    return g[nodes, :3, 3], g[mids, :3, 1], g[nodes[-1]]
+
+
+# ---------------------------------------------------------------------- hooks
+def _prescribed_angle(times, angles, t):
+    """The driven end's joint coordinate: minus the motion's angle, held after."""
+    return -jnp.interp(t, times, angles)[None]
+
+
+@functools.lru_cache(maxsize=32)
+def _mass_damping(rate: float, inertia: tuple[float, ...], rod_points: tuple[int, ...]):
+    """Hook ``-rate M_s eta`` at rod points (body frame, per unit length), 0 elsewhere.
+
+    Cached per value so that equal scenes give the same (static) function and reuse
+    the compiled programs.
+    """
+    M_s = np.diag(np.asarray(inertia, dtype=float))
+    mask = np.asarray(rod_points, dtype=float)
+
+    def hook(t, q, qd, kin):
+        W = -rate * kin.eta @ jnp.asarray(M_s, dtype=kin.eta.dtype)
+        return W * jnp.asarray(mask, dtype=W.dtype)[:, None]
+
+    return hook
+
+
+# --------------------------------------------------------------------- the model
+@dataclasses.dataclass
+class _Model:
+    """A built rod model in its local frame, and how to sample it."""
+
+    plan: _Plan
+    linkage: sj.Linkage
+    sampler: sj.Linkage
+    nodes: np.ndarray
+    mids: np.ndarray
+    q0: jax.Array
+    key: tuple
+    angles: np.ndarray | None  # (n_times,) driven end's angle samples
+    times: np.ndarray | None
+
+
+def _build(scenario: Scenario, rod: Rod, n_elements: int, plan: _Plan) -> _Model:
+    """The linkage of ``rod`` in its local frame, its sampler and initial state.
+
+    The sampler is the same chain with zero point wrenches at the material nodes and
+    element middles: they add significant points there, where its forward
+    kinematics then gives the poses (the probes are not in the simulated model).
+    """
+    p0, R0 = _frame(rod)
+    m = rod.material
+    material = sj.Material(
+        E=m.youngs_modulus, poisson=_poisson(rod), rho=m.density, eta=0.0
+    )
+    basis = sj.LegendreBasis(plan.modes, plan.orders)
+    L = rod.length
+    rod_link = sj.SoftLink(
+        sj.Division(L, sj.CircularSection(rod.radius), basis),
+        material,
+        joint=_joint(plan.start_joint, plan.normal_local),
+    )
+    links = [rod_link]
+    axis_local = None
+    angles = times = None
+    if plan.driven:
+        motion = rod.end_motion
+        axis = _motion_axis(motion)
+        times = np.asarray(motion.times, dtype=float)
+        angles = np.asarray(motion.rotation, dtype=float) @ axis
+    # Sampling points: the material nodes and the element middles (X1 in [0, 1]).
+    x_nodes = np.linspace(0.0, 1.0, n_elements + 1)
+    x_mids = (x_nodes[:-1] + x_nodes[1:]) / 2
+    probes = [
+        sj.PointWrench(1, np.zeros(6), division=1, X1=float(x))
+        for x in np.concatenate([x_nodes, x_mids])
+    ]
+    # The fit and the end pose use the sampler of the rod alone.
+    sampler0 = sj.Linkage([rod_link], point_wrenches=probes)
+    nodes0 = np.asarray([sampler0.point_index(p) for p in probes[: n_elements + 1]])
+    mids0 = np.asarray([sampler0.point_index(p) for p in probes[n_elements + 1 :]])
+    tables = _strain_tables(rod, R0)
+    strain = eqx.Partial(_tabulated_strain, *map(jnp.asarray, tables))
+    q_rod = _fit(sampler0, strain)
+    _, _, g_end = _sample(sampler0, q_rod, nodes0, mids0)
+    g_end = np.asarray(g_end)
+    if plan.driven:
+        axis_local = R0.T @ axis
+        a_end = g_end[:3, :3].T @ axis_local  # the axis in the end's frame
+        inertia = 1e-3 * m.density * 2 * rod.second_moment_of_area * L
+        links.append(
+            sj.RigidLink(
+                sj.Joint("R", axis=tuple(a_end)),
+                length=rod.radius,
+                section=sj.CircularSection(rod.radius),
+                mass=0.0,
+                inertia=inertia * np.eye(3),
+                g_i=np.eye(4),
+                g_f=np.eye(4),
+            )
+        )
+    q0 = jnp.concatenate([q_rod, jnp.zeros(len(links) - 1)])
+    sampler = sj.Linkage(links, point_wrenches=probes)
+    loads = []
+    for ld in rod.loads:
+        f = np.asarray(ld.force, dtype=float) @ R0
+        if ld.at is End.END:
+            loads.append(sj.PointWrench(1, np.concatenate([np.zeros(3), f])))
+        elif rod.start is EndCondition.FREE:
+            loads.append(
+                sj.PointWrench(1, np.concatenate([np.zeros(3), f]), division=1, X1=0.0)
+            )
+        # a load on a held start does nothing
+    loops = []
+    if plan.end_loop is not None:
+        if plan.end_loop == "P":
+            joint = sj.Joint("P", axis=tuple(g_end[:3, :3].T @ axis_local))
+        else:
+            joint = plan.end_loop
+        loops.append(sj.ClosedLoopJoint(joint, link_A=len(links), link_B=0, g_B=g_end))
+    gravity = np.asarray(scenario.gravity, dtype=float) @ R0
+    hook = None
+    rate = 0.0
+    if plan.method == "damped":
+        rate = 2.0 * scenario.slowest_frequency()
+        A, I = rod.area, rod.second_moment_of_area
+        inertia = tuple(float(v) for v in m.density * np.array([2 * I, I, I, A, A, A]))
+        layout = sj.Linkage(links, point_wrenches=loads).layout
+        rod_points = tuple(
+            int(kind == ROD and link == 1)
+            for kind, link in zip(layout.point_kind, layout.point_link, strict=True)
+        )
+        hook = _mass_damping(rate, inertia, rod_points)
+    actuators = [sj.JointActuator(2, prescribed=True)] if plan.driven else []
+    linkage = sj.Linkage(
+        links,
+        gravity=gravity,
+        point_wrenches=loads,
+        closed_loops=loops,
+        actuators=actuators,
+        custom_wrench=hook,
+    )
+    key = (
+        plan,
+        rod.radius,
+        dataclasses.astuple(m),
+        L,
+        np.asarray(q0).tobytes(),
+        np.asarray(
+            [np.asarray(ld.force, dtype=float) @ R0 for ld in rod.loads]
+        ).tobytes(),
+        tuple(ld.at for ld in rod.loads),
+        gravity.tobytes(),
+        g_end.tobytes(),
+        rate,
+        None if times is None else times.tobytes(),
+    )
+    return _Model(plan, linkage, sampler, nodes0, mids0, q0, key, angles, times)
+
+
+def _joint(kind: str, normal_local) -> sj.Joint:
+    if kind in ("R", "A"):
+        return sj.Joint(kind, axis=normal_local)
+    return sj.Joint(kind)
+
+
+# ------------------------------------------------------------------- the solvers
+@eqx.filter_jit
+def _advance(
+    linkage: sj.Linkage,
+    sampler: sj.Linkage,
+    nodes,
+    mids,
+    y,
+    t0,
+    ts,
+    times,
+    angles,
+    solver: str,
+    rtol: float,
+    atol: float,
+):
+    """A chunk of frames for a batch of rods (local frame).
+
+    Integrates from ``t0`` to ``ts[-1]`` saving at ``ts`` (``FRAME_CHUNK`` times,
+    non-decreasing; a last chunk repeats its final time). ``y`` is
+    ``(batch, 2 n_dof)``, ``angles`` ``(batch, n_times)`` or None. Returns ``(ys,
+    positions, d1, ok, steps)`` with a leading batch axis and then one entry per save
+    time. Shapes depend on neither the frame times nor their number: one compilation
+    serves every chunk of every run of the same scene.
+    """
+    n = linkage.n_dof
+
+    def one(y_, angles_):
+        u = None if angles_ is None else eqx.Partial(_prescribed_angle, times, angles_)
+        tr = sj.simulate(
+            linkage,
+            ts[-1],
+            y_[:n],
+            y_[n:],
+            t0=t0,
+            ts=ts,
+            solver=solver,
+            rtol=rtol,
+            atol=atol,
+            u=u,
+            throw=False,
+            max_steps=1 << 20,
+        )
+        ys = jnp.concatenate([tr.q, tr.qd], axis=1)
+        g = jax.vmap(lambda q: sj.forward_kinematics(sampler, q))(tr.q)
+        ok = (tr.result == sj.RESULTS.successful) & jnp.all(jnp.isfinite(ys))
+        return ys, g[:, nodes][..., :3, 3], g[:, mids][..., :3, 1], ok, tr.num_steps
+
+    if y.shape[0] == 1:  # no batch: a vmap of one costs ~50% more per step
+        out = one(y[0], None if angles is None else angles[0])
+        return jax.tree.map(lambda a: a[None], out)
+    in_angles = None if angles is None else 0
+    return jax.vmap(one, in_axes=(0, in_angles))(y, angles)
+
+
+# ------------------------------------------------------------------- the adapter
+class SorojaxSolver:
+    """cosseratbench solver adapter for sorojax (GVS Cosserat rods in JAX).
+
+    Attributes:
+        name: ``"sorojax"`` (the benchmark's name for it).
+        capabilities: stretch and shear (no contact of any kind).
+        backend_version: the installed sorojax version.
+        time_step_scale: multiplies the integrator's steps: the relative tolerance of
+            the adaptive step control is scaled by ``time_step_scale**p``, ``p`` the
+            order of its local error; statics has no step and ignores it.
+    """
+
+    name = "sorojax"
+    capabilities = frozenset({Capability.STRETCH, Capability.SHEAR})
+    backend_version = sj.__version__
+
+    def __init__(self, time_step_scale: float = 1.0):
+        if not float(time_step_scale) > 0:
+            raise ValueError(
+                f"time_step_scale = {time_step_scale!r}: give a positive number "
+                "(1 = the adapter's own choice)."
+            )
+        self.time_step_scale = float(time_step_scale)
+
+    # ------------------------------------------------------------------ settings
+    def _tolerances(self) -> tuple[str, float, float]:
+        rtol = SOLVER_RTOL * self.time_step_scale**SOLVER_ORDER
+        return DYNAMIC_SOLVER, rtol, ATOL_FACTOR * rtol
+
+    def settings(
+        self, scenario: Scenario, *, n_elements: int, n_frames: int
+    ) -> dict[str, object]:
+        """The numerical choices for ``scenario`` (JSON values), per rod model.
+
+        Args:
+            scenario: the benchmark scene.
+            n_elements: elements per rod (sets the polynomial order).
+            n_frames: frames asked for.
+
+        Returns:
+            A dict: model (modes, orders, DoF, joints), solver and its tolerances,
+            damping.
+        """
+        plans = [_plan(scenario, rod, n_elements) for rod in scenario.rods]
+        out: dict[str, object] = {}
+        distinct = list(dict.fromkeys(plans))
+        for k, plan in enumerate(distinct):
+            rods = [i for i, p in enumerate(plans) if p == plan]
+            entry: dict[str, object] = {
+                "rods": rods,
+                "orders": {
+                    name: o
+                    for name, f, o in zip(
+                        MODE_NAMES, plan.modes, plan.orders, strict=True
+                    )
+                    if f
+                },
+                "basis": "Legendre",
+                "n_dof": plan.n_dof,
+                "start_joint": plan.start_joint,
+                "end_closure": plan.end_loop,
+                "driven_end": plan.driven,
+                "method": plan.method,
+            }
+            if plan.method == "statics":
+                entry["solver"] = "solve_statics (Newton, rtol=atol=1e-10)"
+                entry["if_unstable"] = "damped dynamics (mass-proportional)"
+            else:
+                solver, rtol, atol = self._tolerances()
+                entry.update(solver=solver, rtol=rtol, atol=atol, adaptive=True)
+            if plan.method == "damped":
+                entry["damping"] = "mass-proportional"
+                entry["damping_rate"] = 2.0 * scenario.slowest_frequency()
+            else:
+                entry["damping"] = "none"
+            out[f"model{k}" if len(distinct) > 1 else "model"] = entry
+        out["time_step_scale"] = self.time_step_scale
+        return out
+
+    # ----------------------------------------------------------------------- run
+    def run(self, scenario: Scenario, *, n_elements: int, n_frames: int) -> Trajectory:
+        """Simulate ``scenario`` and sample it at the material nodes.
+
+        Args:
+            scenario: the benchmark scene.
+            n_elements: elements per rod: ``n_elements + 1`` nodes are returned.
+            n_frames: frames, evenly spaced from 0 to ``scenario.duration``.
+
+        Returns:
+            The :class:`cosseratbench.Trajectory`.
+
+        Raises:
+            NotImplementedError: a scene feature outside these models (driven start,
+                displaced end, obstacles, Poisson ratio above 0.5).
+            cosseratbench.Diverged: a solve failed or gave non-finite values.
+        """
+        if scenario.obstacles:
+            raise NotImplementedError("obstacles (contact) are not modelled by sorojax")
+        times = np.linspace(0.0, scenario.duration, n_frames)
+        rods = scenario.rods
+        with jax.enable_x64(True):
+            models = [
+                _build(scenario, rod, n_elements, _plan(scenario, rod, n_elements))
+                for rod in rods
+            ]
+            positions: list = [None] * len(models)
+            directors: list = [None] * len(models)
+            groups: dict = {}
+            for i, mdl in enumerate(models):
+                groups.setdefault(mdl.key, []).append(i)
+            for members in groups.values():
+                results = None
+                if models[members[0]].plan.method == "statics":
+                    out = self._statics(models[members[0]], scenario, n_frames)
+                    if out is not None:
+                        results = [out] * len(members)
+                    else:  # unstable: the damped dynamics finds a stable one
+                        for i in members:
+                            plan = dataclasses.replace(models[i].plan, method="damped")
+                            models[i] = _build(scenario, rods[i], n_elements, plan)
+                if results is None:
+                    results = self._dynamics(models, members, times)
+                for i, (pos, d1) in zip(members, results, strict=True):
+                    p0, R0 = _frame(rods[i])
+                    positions[i] = p0 + pos @ R0.T
+                    directors[i] = d1 @ R0.T
+        return Trajectory(times, tuple(positions), tuple(directors))
+
+    def _statics(self, mdl: _Model, scenario: Scenario, n_frames: int):
+        """``(positions, d1)`` of the initial shape then the equilibrium, or None.
+
+        None when the equilibrium Newton's method found is unstable.
+        """
+        sol = sj.solve_statics(mdl.linkage, mdl.q0, throw=False, warn_unstable=False)
+        if not (sol.result == sj.RESULTS.successful) or not np.all(np.isfinite(sol.q)):
+            raise Diverged(
+                "sorojax.solve_statics did not converge (scaled residual "
+                f"{float(sol.residual_norm):.3g})",
+                time=scenario.duration,
+            )
+        if not bool(sol.stable):
+            return None
+        p0, d0, _ = _sample(mdl.sampler, mdl.q0, mdl.nodes, mdl.mids)
+        p1, d1, _ = _sample(mdl.sampler, sol.q, mdl.nodes, mdl.mids)
+        later = n_frames - 1
+        pos = np.concatenate(
+            [np.asarray(p0)[None], np.repeat(np.asarray(p1)[None], later, 0)]
+        )
+        d = np.concatenate(
+            [np.asarray(d0)[None], np.repeat(np.asarray(d1)[None], later, 0)]
+        )
+        return pos, d
+
+    def _dynamics(self, models, members, times):
+        mdl = models[members[0]]
+        solver, rtol, atol = self._tolerances()
+        n = mdl.linkage.n_dof
+        B = len(members)
+        y = jnp.tile(jnp.concatenate([mdl.q0, jnp.zeros(n)])[None], (B, 1))
+        if mdl.plan.driven:
+            angles = jnp.asarray(np.stack([models[i].angles for i in members]))
+            mtimes = jnp.asarray(mdl.times)
+        else:
+            angles = mtimes = None
+        p0, d0, _ = _sample(mdl.sampler, mdl.q0, mdl.nodes, mdl.mids)
+        T = len(times)
+        pos = np.empty((B, T, len(mdl.nodes), 3))
+        dirs = np.empty((B, T, len(mdl.mids), 3))
+        pos[:, 0], dirs[:, 0] = np.asarray(p0), np.asarray(d0)
+        C = FRAME_CHUNK
+        for k in range(1, T, C):
+            chunk = np.minimum(np.arange(k, k + C), T - 1)  # pad with the last frame
+            ys, p, d, ok, _ = _advance(
+                mdl.linkage,
+                mdl.sampler,
+                mdl.nodes,
+                mdl.mids,
+                y,
+                jnp.asarray(times[k - 1]),
+                jnp.asarray(times[chunk]),
+                mtimes,
+                angles,
+                solver,
+                rtol,
+                atol,
+            )
+            if not bool(jnp.all(ok)):
+                raise Diverged(
+                    f"sorojax.simulate ({solver}) failed between t = "
+                    f"{times[k - 1]:.4g} and {times[chunk[-1]]:.4g} s",
+                    time=float(times[k - 1]),
+                )
+            m = min(C, T - k)
+            y = ys[:, m - 1]
+            pos[:, k : k + m], dirs[:, k : k + m] = (
+                np.asarray(p[:, :m]),
+                np.asarray(d[:, :m]),
+            )
+        return [(pos[b], dirs[b]) for b in range(B)]

@@ -1,0 +1,103 @@
+"""The cosseratbench adapter (sorojax/contrib/cosseratbench.py) on short cases.
+
+Skipped without cosseratbench (``pip install -e ".[test]"`` installs it). One static
+scene through the adapter's ``run`` at a low resolution (one compile, ~5 s); the
+dynamic path (frame chunks, pre-stretched initial fit) is marked ``slow`` (its
+compile adds ~10 s): ``pytest tests/test_cosseratbench.py -m slow``.
+"""
+
+import numpy as np
+import pytest
+
+cb = pytest.importorskip(
+    "cosseratbench", reason="cosseratbench (the rod benchmark) is not installed"
+)
+
+from cosseratbench.experiments.cantilever import cantilever  # noqa: E402
+from cosseratbench.experiments.pendulum import pendulum  # noqa: E402
+
+from sorojax.contrib.cosseratbench import SorojaxSolver  # noqa: E402
+
+
+def test_solver_contract():
+    """The adapter satisfies the benchmark's Solver protocol and its registry."""
+    from cosseratbench import registry
+
+    solver = SorojaxSolver()
+    assert isinstance(solver, cb.Solver)
+    assert solver.name == "sorojax"
+    assert solver.capabilities == frozenset(
+        {cb.Capability.STRETCH, cb.Capability.SHEAR}
+    )
+    assert "sorojax" in registry.names(registry.SOLVERS), "entry point not installed"
+    assert SorojaxSolver(time_step_scale=2.0).time_step_scale == 2.0
+
+
+def test_cantilever_tip_deflection():
+    """Clamped rod, 7.5 mN dead tip load: Timoshenko's tip deflection.
+
+    Reference: P L^3 / (3 E I) + P L / (k G A) (Euler-Bernoulli plus shear; the
+    adapter models shear here, 3 E I / (k G A L^2) = 1.0e-3). Tolerance 1e-3: the
+    large-deflection shortening (tip at 2% of L) lowers the tip by ~4e-4 of it,
+    which the linear formula leaves out. Frame 0 is the straight rod exactly.
+    """
+    scenario = cantilever.scenario
+    rod = scenario.rods[0]
+    n, frames = 10, 3
+    solver = SorojaxSolver()
+    settings = solver.settings(scenario, n_elements=n, n_frames=frames)["model"]
+    assert settings["orders"] == {"bend_z": 2, "shear_y": 2}, settings
+    assert settings["method"] == "statics"
+    tr = solver.run(scenario, n_elements=n, n_frames=frames)
+
+    assert tr.times.shape == (frames,)
+    assert tr.positions[0].shape == (frames, n + 1, 3)
+    assert tr.directors[0].shape == (frames, n, 3)
+    np.testing.assert_allclose(tr.times, np.linspace(0, scenario.duration, frames))
+    # t = 0: the straight rod and the benchmark's material frame, to rounding.
+    np.testing.assert_allclose(tr.positions[0][0], rod.nodes(n), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(tr.directors[0][0], rod.directors(n), rtol=0, atol=1e-12)
+
+    P = -cantilever.scenario.rods[0].loads[0].force[2]
+    E, G = rod.material.youngs_modulus, rod.material.shear_modulus
+    nu = E / (2 * G) - 1
+    k = 6 * (1 + nu) / (7 + 6 * nu)  # Cowper, solid circle
+    L, I, A = rod.length, rod.second_moment_of_area, rod.area
+    reference = P * L**3 / (3 * E * I) + P * L / (k * G * A)
+    tip = -tr.positions[0][-1, -1, 2]
+    assert abs(tip - reference) < 1e-3 * reference, (
+        f"tip deflection {tip:.6e} m vs Timoshenko {reference:.6e} m"
+    )
+    # The directors stay unit and perpendicular to their elements (to rounding).
+    d = tr.directors[0][-1]
+    e = np.diff(tr.positions[0][-1], axis=0)
+    np.testing.assert_allclose(np.linalg.norm(d, axis=1), 1.0, atol=1e-12)
+    assert np.abs(np.sum(d * e, axis=1) / np.linalg.norm(e, axis=1)).max() < 1e-3
+
+
+@pytest.mark.slow
+def test_pendulum_short_swing():
+    """The pinned, pre-stretched cable released in its first mode, 0.3 s.
+
+    Frames come in chunks of 32 (40 frames: a full and a padded chunk). Checks: the
+    initial shape is the scenario's (the stretch and curvature fit, 1e-5 m), the pin
+    stays put (1e-9 m), the free end moves back toward the vertical (it starts at
+    its largest swing: x decreases), and no element stretches by more than the
+    static strain rho g L / E = 1e-3 plus 20%.
+    """
+    scenario = pendulum.scenario
+    scenario = type(scenario)(**{**scenario.__dict__, "duration": 0.3})
+    rod = scenario.rods[0]
+    n, frames = 12, 40
+    tr = SorojaxSolver().run(scenario, n_elements=n, n_frames=frames)
+    x = tr.positions[0]
+    assert x.shape == (frames, n + 1, 3)
+    assert np.all(np.isfinite(x))
+    np.testing.assert_allclose(x[0], rod.nodes(n), rtol=0, atol=1e-5)
+    np.testing.assert_allclose(tr.directors[0][0], rod.directors(n), atol=1e-12)
+    assert np.abs(x[:, 0]).max() < 1e-9, "the pin moved"
+    tip_x = x[:, -1, 0]
+    assert tip_x[-1] < tip_x[0] and np.all(np.diff(tip_x) < 1e-6), tip_x
+    strain = np.linalg.norm(np.diff(x, axis=1), axis=2) / (rod.length / n) - 1
+    bound = 1.2 * rod.material.density * 9.81 * rod.length / rod.material.youngs_modulus
+    assert np.abs(strain).max() < bound, f"max element strain {np.abs(strain).max()}"
