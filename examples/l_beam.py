@@ -10,9 +10,9 @@ constraint error, the clamp reaction, and the linear (small-load) check against
 Euler-Bernoulli frame theory; writes a PNG (3D shape, and deflection along the beam
 with the linear solution for comparison).
 
-The SoRoSim papers report an L-beam with 12.98 cm maximum deflection (GVS) against
-13.27 cm (ANSYS), but its geometry, material and load are not given in the sources
-at hand; the numbers printed here are for our setup and are not a reproduction.
+This is a setup of our own, not the SoRoSim paper's L-beam (12.98 cm GVS vs
+13.27 cm ANSYS, two soft 0.7 m arms under gravity): that case is
+``examples/l_beam_sorosim.py``.
 
 Run::
 
