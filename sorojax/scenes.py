@@ -304,9 +304,9 @@ def l_beam(
     fixed to arm 1's tip turned 90 degrees about z and runs along y to (L, L, 0),
     where a fixed closed-loop joint ('N') clamps its tip to the ground. A world-frame
     force of ``load`` [N] along -z (out of the plane of the L) acts at the corner.
-    The SoRoSim papers' L-beam (12.98 cm GVS vs 13.27 cm ANSYS) is not specified in
-    the sources at hand; this is a setup of our own of the same kind (see
-    ``examples/l_beam.py``).
+    A setup of our own (``examples/l_beam.py``); the SoRoSim paper's L-beam (12.98 cm
+    GVS vs 13.27 cm ANSYS, two soft 0.7 m arms under gravity) is
+    ``examples/l_beam_sorosim.py``.
     """
     modes = (1, 1, 1, 0, 0, 0)
     material = Material(E=E, poisson=poisson, rho=rho)
