@@ -16,7 +16,9 @@ Converged, high-order results live in the examples; the models here are small an
 share their compiled solves (module-scope fixtures, array-valued parameters).
 """
 
+import importlib.util
 import math
+import pathlib
 
 import jax.numpy as jnp
 import numpy as np
@@ -27,7 +29,6 @@ import scipy.sparse
 import scipy.sparse.linalg
 
 import sorojax as sj
-from sorojax.scenes import rotation_z
 
 # ----------------------------------------------------------------- follower load
 
@@ -187,37 +188,20 @@ def test_bathe_bolourchi_saint_venant_torsion_is_softer(bend_tips):
 
 # ----------------------------------------------------------------- SoRoSim L-beam
 
-L_ARM, L_SIDE, L_E, L_NU, L_RHO, L_G = 0.7, 0.05, 10e6, 0.5, 1200.0, 9.81
-
-
-def sorosim_l_beam(gravity):
-    """SoRoSim's L (horizontal: arms along x and y), SoRoSim's section model, 30 DoF.
-
-    All six modes, angular strains quadratic and linear strains linear (Legendre:
-    the same space as SoRoSim's monomials); the far end clamped to the ground by
-    a fixed closed-loop joint. ``gravity`` is an array leaf (one compile).
-    """
-    material = sj.Material(E=L_E, poisson=L_NU, rho=L_RHO)
-    basis = sj.LegendreBasis((1, 1, 1, 1, 1, 1), (2, 2, 2, 1, 1, 1))
-    section = sj.RectangularSection(L_SIDE, L_SIDE)
-    arms = [sj.SoftLink(sj.Division(L_ARM, section, basis), material)] * 2
-    g_clamp = rotation_z(math.pi / 2)
-    g_clamp[:2, 3] = [L_ARM, L_ARM]
-    linkage = sj.Linkage(
-        arms,
-        placements=jnp.asarray(np.stack([np.eye(4), rotation_z(math.pi / 2)])),
-        gravity=gravity,
-        closed_loops=[sj.ClosedLoopJoint("N", link_A=2, link_B=0, g_B=g_clamp)],
-    )
-    return sj.sorosim_mechanics(linkage)
+# The scene and its linear reference live in the example (loaded, not copied).
+_SPEC = importlib.util.spec_from_file_location(
+    "l_beam_sorosim",
+    pathlib.Path(__file__).parent.parent / "examples" / "l_beam_sorosim.py",
+)
+L_BEAM = importlib.util.module_from_spec(_SPEC)
+_SPEC.loader.exec_module(L_BEAM)
+L_G = L_BEAM.GRAVITY
 
 
 def _max_deflection(gravity) -> float:
-    linkage = sorosim_l_beam(gravity)
-    q = sj.solve_statics(linkage).q
-    g = np.asarray(sj.forward_kinematics(linkage, q))[:, :3, 3]
-    g0 = np.asarray(sj.forward_kinematics(linkage, np.zeros(linkage.n_dof)))[:, :3, 3]
-    return float(np.linalg.norm(g - g0, axis=1).max())
+    """Max deflection [m] of the 30-DoF L under SoRoSim's section model."""
+    linkage = L_BEAM.l_beam(gravity=gravity)  # horizontal L, sorosim_mechanics
+    return L_BEAM.max_deflection(linkage, sj.solve_statics(linkage).q)
 
 
 @pytest.fixture(scope="module")
@@ -230,39 +214,6 @@ def l_beam_deflections():
     }
 
 
-def linear_l_beam_corner(EI, GJ, kGA, q, L):
-    """Exact linear (Timoshenko) corner deflection of the clamped L under q [N/m].
-
-    Stiffness method on the corner's out-of-plane DoFs (w, theta_x, theta_y): one
-    exact Timoshenko element per arm, clamped at its far end, with the exact
-    fixed-end forces of a uniform load (q L / 2, q L^2 / 12).
-    """
-    phi = 12 * EI / (kGA * L**2)
-    c = EI / (L**3 * (1 + phi))
-    kb = c * np.array(
-        [
-            [12, 6 * L, -12, 6 * L],
-            [6 * L, (4 + phi) * L**2, -6 * L, (2 - phi) * L**2],
-            [-12, -6 * L, 12, -6 * L],
-            [6 * L, (2 - phi) * L**2, -6 * L, (4 + phi) * L**2],
-        ]
-    )
-    kt = GJ / L * np.array([[1.0, -1.0], [-1.0, 1.0]])
-    fb = np.array([-q * L / 2, -q * L**2 / 12, -q * L / 2, q * L**2 / 12])
-    K, F = np.zeros((9, 9)), np.zeros(9)  # nodes: clamp 1, corner, clamp 2
-    for node, axis in ((0, np.array([1.0, 0.0])), (1, np.array([0.0, 1.0]))):
-        normal = np.array([-axis[1], axis[0]])  # dw/ds = -(rotation . normal)
-        Tb, Tt = np.zeros((4, 6)), np.zeros((2, 6))
-        for j in range(2):
-            Tb[2 * j, 3 * j] = 1.0
-            Tb[2 * j + 1, 3 * j + 1 : 3 * j + 3] = -normal
-            Tt[j, 3 * j + 1 : 3 * j + 3] = axis
-        idx = np.arange(3 * node, 3 * node + 6)
-        K[np.ix_(idx, idx)] += Tb.T @ kb @ Tb + Tt.T @ kt @ Tt
-        F[idx] += Tb.T @ fb
-    return abs(np.linalg.solve(K[3:6, 3:6], F[3:6])[0])
-
-
 def test_l_beam_small_load_limit_is_exact_linear_solution(l_beam_deflections):
     """At 1e-4 of gravity the deflection per unit load is linear Timoshenko theory's.
 
@@ -270,11 +221,7 @@ def test_l_beam_small_load_limit_is_exact_linear_solution(l_beam_deflections):
     linear solution (quadratic moments, constant torques, linear shear forces), so
     only the O(load) nonlinearity remains (~1e-9). Tolerance 1e-7.
     """
-    G = L_E / (2 * (1 + L_NU))
-    I_ = L_SIDE**4 / 12
-    ref = linear_l_beam_corner(
-        L_E * I_, G * 2 * I_, G * L_SIDE**2, L_RHO * L_SIDE**2 * L_G, L_ARM
-    )
+    ref = L_BEAM.linear_corner_deflection("sorosim")
     got = l_beam_deflections["small"]
     assert abs(got / ref - 1) < 1e-7, f"linear limit {got:.9f} vs exact {ref:.9f} m"
 
