@@ -203,11 +203,6 @@ def _frame(rod: Rod) -> tuple[np.ndarray, np.ndarray]:
     return pts[0], np.stack([t0, d1, np.cross(t0, d1)], axis=1)
 
 
-def _shear_coefficient(nu: float) -> float:
-    """Cowper's shear coefficient of a solid circle (sorojax's default section)."""
-    return 6.0 * (1.0 + nu) / (7.0 + 6.0 * nu)
-
-
 def _poisson(rod: Rod) -> float:
     m = rod.material
     nu = m.youngs_modulus / (2.0 * m.shear_modulus) - 1.0
@@ -294,7 +289,9 @@ def _plan(scenario: Scenario, rod: Rod, n_elements: int) -> _Plan:
         sum(np.linalg.norm(f) for f in forces) + rho * A * L * np.linalg.norm(gravity)
     ) / (E * A)
     stretch = prestretch >= EFFECT_TOL or axial >= EFFECT_TOL
-    shear = 3.0 * E * I / (_shear_coefficient(nu) * G * A * L**2) >= EFFECT_TOL
+    # Cowper's shear coefficient of the circle sorojax's model will use
+    k = float(sj.CircularSection(rod.radius).shear_coefficients(0.0, nu)[0])
+    shear = 3.0 * E * I / (k * G * A * L**2) >= EFFECT_TOL
     if planar:
         n = np.asarray(normal_local)
         bend_y = abs(n[1]) > 1e-12
@@ -507,8 +504,8 @@ def _build(scenario: Scenario, rod: Rod, n_elements: int, plan: _Plan) -> _Model
     rate = 0.0
     if plan.method == "damped":
         rate = 2.0 * scenario.slowest_frequency()
-        A, I = rod.area, rod.second_moment_of_area
-        inertia = tuple(float(v) for v in m.density * np.array([2 * I, I, I, A, A, A]))
+        A, Iy, Iz, Ip = map(float, sj.CircularSection(rod.radius).properties(0.0))
+        inertia = tuple(m.density * v for v in (Ip, Iy, Iz, A, A, A))
         layout = sj.Linkage(links, point_wrenches=loads).layout
         rod_points = tuple(
             int(kind == ROD and link == 1)

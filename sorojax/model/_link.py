@@ -272,10 +272,10 @@ class RigidLink(AbstractLink):
         """6x6 inertia at the CM, angular first: [[I, 0], [0, m 1]].
 
         From the prism (uniform density, section taken at its middle) unless ``mass``
-        / ``inertia`` were given: Ixx = rho L J, Iyy = rho L Iy + m L^2 / 12,
-        Izz = rho L Iz + m L^2 / 12.
+        / ``inertia`` were given: Ixx = rho L Ip (Ip the polar moment),
+        Iyy = rho L Iy + m L^2 / 12, Izz = rho L Iz + m L^2 / 12.
         """
-        A, Iy, Iz, J = self.section.properties(0.5)
+        A, Iy, Iz, Ip = self.section.properties(0.5)
         L = self.length
         m_shape = self.rho * A * L
         m = m_shape if self.mass is None else self.mass
@@ -283,7 +283,7 @@ class RigidLink(AbstractLink):
             # Scale the shape's inertia to the given mass if only the mass was given.
             s = self.rho if self.mass is None else m / (A * L)
             I3 = s * jnp.diag(
-                jnp.stack([J * L, Iy * L + A * L**3 / 12, Iz * L + A * L**3 / 12])
+                jnp.stack([Ip * L, Iy * L + A * L**3 / 12, Iz * L + A * L**3 / 12])
             )
         else:
             I3 = self.inertia

@@ -80,13 +80,11 @@ class AbstractSection(eqx.Module):
         """
 
     @abc.abstractmethod
-    def stiffness_properties(
-        self, X1, poisson
-    ) -> tuple[Array, Array, Array, Array, Array, Array]:
-        """Return ``(A, Iy, Iz, J, A_y, A_z)`` at ``X1`` for a Poisson ratio.
+    def stiffness_constants(self, X1, poisson) -> tuple[Array, Array, Array]:
+        """Return ``(J, A_y, A_z)`` at ``X1`` for a Poisson ratio.
 
         ``J`` is the torsion constant, ``A_y = k_y A`` and ``A_z = k_z A`` the shear
-        areas.
+        areas (A, Iy, Iz come from :meth:`properties`).
         """
 
     @abc.abstractmethod
@@ -122,11 +120,11 @@ class _ShapedSection(AbstractSection):
             return k, k
         return self._cowper(X1, poisson)
 
-    def stiffness_properties(self, X1, poisson):
-        """``(A, Iy, Iz, J, k_y A, k_z A)`` under this section's model."""
-        A, Iy, Iz, _ = self.properties(X1)
+    def stiffness_constants(self, X1, poisson):
+        """``(J, k_y A, k_z A)`` under this section's model."""
+        A = self.properties(X1)[0]
         ky, kz = self.shear_coefficients(X1, poisson)
-        return A, Iy, Iz, self.torsion_constant(X1), ky * A, kz * A
+        return self.torsion_constant(X1), ky * A, kz * A
 
 
 class CircularSection(_ShapedSection):
@@ -328,12 +326,12 @@ class SectionProperties(AbstractSection):
         Ip = Iy + Iz if self.polar_moment is None else self.polar_moment(X1)
         return self.A(X1), Iy, Iz, Ip
 
-    def stiffness_properties(self, X1, poisson):
-        """``(A, Iy, Iz, J, A_y, A_z)`` as given (shear areas default A)."""
+    def stiffness_constants(self, X1, poisson):
+        """``(J, A_y, A_z)`` as given (shear areas default A)."""
         A = self.A(X1)
         Ay = A if self.shear_area_y is None else self.shear_area_y(X1)
         Az = A if self.shear_area_z is None else self.shear_area_z(X1)
-        return A, self.Iy(X1), self.Iz(X1), self.J(X1), Ay, Az
+        return self.J(X1), Ay, Az
 
     def extent(self, X1):
         """Half-widths of the rectangle with the same A, Iy, Iz (for plots)."""
@@ -370,8 +368,8 @@ def section_matrices(
         with ``J`` the torsion constant, ``A_y = k_y A``, ``A_z = k_z A`` the shear
         areas and ``Ip`` the polar moment (module docstring).
     """
-    A, Iy, Iz, J, Ay, Az = section.stiffness_properties(X1, poisson)
-    _, _, _, Ip = section.properties(X1)
+    A, Iy, Iz, Ip = section.properties(X1)
+    J, Ay, Az = section.stiffness_constants(X1, poisson)
     Sigma = jnp.diag(jnp.stack([G * J, E * Iy, E * Iz, E * A, G * Ay, G * Az]))
     M_s = rho * jnp.diag(jnp.stack([Ip, Iy, Iz, A, A, A]))
     Upsilon = eta * jnp.diag(jnp.stack([J, 3 * Iy, 3 * Iz, 3 * A, Ay, Az]))
