@@ -59,7 +59,6 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
-import jax.numpy as jnp  # noqa: E402
 import matplotlib  # noqa: E402
 import numpy as np  # noqa: E402
 
@@ -68,7 +67,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import sorojax as sj  # noqa: E402
-from sorojax.scenes import rotation_z  # noqa: E402
+from sorojax.scenes import l_beam as l_beam_scene  # noqa: E402
 from sorojax.viz import plot_configuration, plot_reference  # noqa: E402
 
 L, SIDE, E, POISSON, RHO, GRAVITY = 0.7, 0.05, 10e6, 0.5, 1200.0, 9.81
@@ -88,24 +87,17 @@ def l_beam(orders=SOROSIM_ORDERS, mechanics="sorosim", gravity=(0.0, 0.0, -GRAVI
     Returns:
         The :class:`sorojax.Linkage`.
     """
-    material = sj.Material(E=E, poisson=POISSON, rho=RHO)
     ang, lin = orders
-    basis = sj.LegendreBasis((1, 1, 1, 1, 1, 1), (ang, ang, ang, lin, lin, lin))
-    arms = [
-        sj.SoftLink(
-            sj.Division(L, sj.RectangularSection(SIDE, SIDE), basis),
-            material,
-            color=color,
-        )
-        for color in ("tab:blue", "tab:orange")
-    ]
-    g_clamp = rotation_z(math.pi / 2)
-    g_clamp[:2, 3] = [L, L]
-    linkage = sj.Linkage(
-        arms,
-        placements=jnp.asarray(np.stack([np.eye(4), rotation_z(math.pi / 2)])),
+    linkage = l_beam_scene(
+        order=(ang, ang, ang, lin, lin, lin),
+        load=None,
+        length=L,
+        E=E,
+        poisson=POISSON,
+        rho=RHO,
         gravity=gravity,
-        closed_loops=[sj.ClosedLoopJoint("N", link_A=2, link_B=0, g_B=g_clamp)],
+        modes=(1, 1, 1, 1, 1, 1),
+        section=sj.RectangularSection(SIDE, SIDE),
     )
     return sj.sorosim_mechanics(linkage) if mechanics == "sorosim" else linkage
 

@@ -6,6 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .model import (
+    AbstractSection,
     Cable,
     CableAnchor,
     CableSpan,
@@ -286,33 +287,37 @@ def finger_curl(linkage: Linkage, q) -> float:
 
 
 def l_beam(
-    order: int = 3,
-    load: float = 2000.0,
+    order: int | tuple[int, ...] = 3,
+    load: float | None = 2000.0,
     length: float = 1.0,
     radius: float = 0.01,
     E: float = 200e9,
     poisson: float = 0.3,
     rho: float = 7850.0,
     gravity=(0.0, 0.0, 0.0),
+    modes=(1, 1, 1, 0, 0, 0),
+    section: AbstractSection | None = None,
 ) -> Linkage:
     """An L-shaped beam clamped at both ends, loaded at the corner (our setup).
 
-    Two equal arms of ``length`` [m], solid circular section of ``radius`` [m],
-    material ``E`` [Pa], ``poisson``, ``rho`` (default steel); both bend about y and z
-    and twist (inextensible, unshearable: Kirchhoff rods, Legendre ``order``). Arm 1
+    Two equal arms of ``length`` [m], solid circular section of ``radius`` [m] (or
+    ``section``), material ``E`` [Pa], ``poisson``, ``rho`` (default steel); by default
+    both bend about y and z and twist (inextensible, unshearable: Kirchhoff rods),
+    strain ``modes`` with Legendre ``order`` (one, or one per active mode). Arm 1
     runs along x from the clamp at the origin to the corner at (L, 0, 0); arm 2 is
     fixed to arm 1's tip turned 90 degrees about z and runs along y to (L, L, 0),
     where a fixed closed-loop joint ('N') clamps its tip to the ground. A world-frame
-    force of ``load`` [N] along -z (out of the plane of the L) acts at the corner.
+    force of ``load`` [N] along -z (out of the plane of the L) acts at the corner
+    (``None``: no load point).
     A setup of our own (``examples/l_beam.py``); the SoRoSim paper's L-beam (12.98 cm
     GVS vs 13.27 cm ANSYS, two soft 0.7 m arms under gravity) is
-    ``examples/l_beam_sorosim.py``.
+    ``examples/l_beam_sorosim.py``, built with this function.
     """
-    modes = (1, 1, 1, 0, 0, 0)
     material = Material(E=E, poisson=poisson, rho=rho)
+    section = CircularSection(radius) if section is None else section
     arms = [
         SoftLink(
-            Division(length, CircularSection(radius), LegendreBasis(modes, order)),
+            Division(length, section, LegendreBasis(modes, order)),
             material,
             color=color,
         )
@@ -320,11 +325,12 @@ def l_beam(
     ]
     g_clamp = rotation_z(math.pi / 2)
     g_clamp[:2, 3] = [length, length]
+    loads = [] if load is None else [PointWrench(1, [0.0, 0.0, 0.0, 0.0, 0.0, -load])]
     return Linkage(
         arms,
         placements=jnp.asarray(np.stack([np.eye(4), rotation_z(math.pi / 2)])),
         gravity=gravity,
-        point_wrenches=[PointWrench(1, [0.0, 0.0, 0.0, 0.0, 0.0, -load])],
+        point_wrenches=loads,
         closed_loops=[ClosedLoopJoint("N", link_A=2, link_B=0, g_B=g_clamp)],
     )
 
