@@ -37,7 +37,12 @@ def _args(argv):
     )
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--skip-dynamics", action="store_true")
-    ap.add_argument("--chunk", type=int, default=None, help="sweep's cases per pass")
+    ap.add_argument(
+        "--chunk",
+        type=lambda v: None if v == "none" else (v if v == "auto" else int(v)),
+        default="auto",
+        help="sweep's cases per device per pass: a number, 'none' or 'auto'",
+    )
     ap.add_argument(
         "--load-steps",
         type=int,

@@ -22,10 +22,11 @@ def _tip_y(P):
     return sj.tip_pose(rod, sol.q)[1, 3], sol.result._value
 
 
-@pytest.mark.parametrize("chunk", [None, 2])
+@pytest.mark.parametrize("chunk", [None, 2, "auto"])
 def test_sweep_equals_vmap_and_drops_the_padding(chunk):
-    """Five loads (chunk 2: padded to 6 with a copy of the last case): the same
-    tips as jax.vmap of the same solve, to rounding (1e-14 m), in input order."""
+    """Five loads (chunk 2: padded to 6 with a copy of the last case; "auto": at
+    most 8 per chunk on CPU): the same tips as jax.vmap of the same solve, to
+    rounding (1e-14 m), in input order."""
     P = jnp.linspace(0.1, 2.0, 5)
     tips, codes = sj.sweep(_tip_y, P, chunk=chunk)
     ref, ref_codes = jax.jit(jax.vmap(_tip_y))(P)
@@ -40,3 +41,5 @@ def test_sweep_rejects_mismatched_batches():
         sj.sweep(lambda a, b: a + b, jnp.ones(3), jnp.ones(4))
     with pytest.raises(ValueError, match="chunk"):
         sj.sweep(lambda a: a, jnp.ones(3), chunk=0)
+    with pytest.raises(ValueError, match="'auto'"):
+        sj.sweep(lambda a: a, jnp.ones(3), chunk="big")
