@@ -217,6 +217,38 @@ def test_vmap_equals_loop(rod):
     np.testing.assert_allclose(batched, looped, rtol=1e-12, atol=1e-12)
 
 
+def test_step_after_a_jump_evaluates_the_start_again(rod):
+    """A traced ``made_jump`` (diffrax's jump_ts): the mechanical step's loop then
+    evaluates the vector field at t0 instead of using the carried first-same-as-last
+    value. From a stale carried value (zeros) it equals the step from the correct
+    one to rounding (1e-12); without the jump flag the stale value changes the
+    step (by more than 1e-6), so the comparison can fail."""
+    n = rod.n_dof
+
+    def field(t, y, args):
+        M, f = sj.equations_of_motion(rod, y[:n], y[n:], t)
+        K = sj.stiffness_matrix(rod)
+        return jnp.concatenate([y[n:], jnp.linalg.solve(M, f)]), (M, K, 0.0 * K)
+
+    term = MechanicalTerm(field)
+    q0 = sj.strain_coordinates(rod, [0.0, 2.0, 0.0, 0.0, 0.0, 0.0])
+    y0 = jnp.concatenate([q0, jnp.zeros(n)])
+    solver = RosenbrockW()
+    h = 1e-3
+    f0, lin0 = solver.init(term, 0.0, h, y0, None)
+    stale = (jnp.zeros_like(f0), lin0)
+
+    @jax.jit
+    def step(state, jump):
+        return solver.step(term, 0.0, h, y0, None, state, jump)[0]
+
+    fresh = np.asarray(solver.step(term, 0.0, h, y0, None, (f0, lin0), False)[0])
+    np.testing.assert_allclose(
+        np.asarray(step(stale, jnp.asarray(True))), fresh, rtol=0, atol=1e-12
+    )
+    assert np.abs(np.asarray(step(stale, jnp.asarray(False))) - fresh).max() > 1e-6
+
+
 def test_state_must_be_a_vector():
     """A non-vector state is refused with a message naming the shape."""
     with pytest.raises(ValueError, match=r"one-dimensional array state; got shape"):
