@@ -265,9 +265,9 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
         ``lax.fori_loop`` whose body evaluates the vector field once, at the point
         picked by the iteration index from the tableau's rows, so the compiled step
         holds one copy of the dynamics instead of s + 1 (``benchmarks/latency.py``:
-        5 s of the 12-DoF free-fall rod compiled in 2.7 s instead of 3.8 s, HLO 12.4k
-        lines instead of 21.7k; the 16-DoF cable arm 2.7 s instead of 5.8 s; the
-        results agree to 1e-11 and warm runs got faster, 114 -> 92 ms). The
+        XLA compile of 5 s of the 12-DoF free-fall rod 3.8 -> 1.7 s, HLO 21.7k ->
+        12.4k lines; the 16-DoF cable arm 5.8 -> 2.6 s; the results agree to 1e-11
+        and warm runs got faster, 114 -> 92 ms). The
         stage values ``u`` are the rows of an ``(s, n)`` carry. W, and so its
         Cholesky factor, is that of the step's start, as before.
         """
