@@ -218,9 +218,9 @@ def test_vmap_equals_loop(rod):
 
 
 def test_step_after_a_jump_evaluates_the_start_again(rod):
-    """A traced ``made_jump`` (diffrax's jump_ts): the mechanical step's loop then
-    evaluates the vector field at t0 instead of using the carried first-same-as-last
-    value. From a stale carried value (zeros) it equals the step from the correct
+    """A traced ``made_jump`` (diffrax's jump_ts): the step with a mechanical term
+    then evaluates the vector field at t0 instead of using the carried
+    first-same-as-last value. From a stale carried value (zeros) it equals the step from the correct
     one to rounding (1e-12); without the jump flag the stale value changes the
     step (by more than 1e-6), so the comparison can fail."""
     n = rod.n_dof

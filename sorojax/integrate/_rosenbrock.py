@@ -225,10 +225,6 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
         """One step of the method (see the module docstring)."""
         tab = self.tableau
-        if _mechanical_term(terms) is not None:
-            return self._mechanical_step(
-                terms, t0, t1, y0, args, solver_state, made_jump
-            )
         # First same as last, unless the vector field jumped at t0 (diffrax's jump_ts).
         if made_jump is False:  # a caller's own loop (sorojax.Environment): no cond,
             f0, lin0 = solver_state  # so no second copy of the vector field
@@ -238,6 +234,8 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
                 lambda: self._evaluate(terms, t0, y0, args),
                 lambda: solver_state,
             )
+        if _mechanical_term(terms) is not None:
+            return self._mechanical_step(terms, t0, t1, y0, args, f0, lin0)
         h = t1 - t0
         c = h * tab.gamma
         solve = _dense_solver(lin0, c)
@@ -257,57 +255,36 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
         dense_info = dict(y0=y0, y1=y1, k0=f0 * h, k1=f1 * h)
         return y1, y_error, dense_info, (f1, lin1), diffrax.RESULTS.successful
 
-    def _mechanical_step(self, terms, t0, t1, y0, args, solver_state, made_jump):
+    def _mechanical_step(self, terms, t0, t1, y0, args, f0, lin0):
         """:meth:`step` for a :class:`MechanicalTerm`: one vector field in the program.
 
-        The evaluations of a step (after a jump the one at ``t0``, the stages 2..s,
-        the one at ``t1`` for the next step's first stage) run as one
-        ``lax.fori_loop`` whose body evaluates the vector field once, at the point
-        picked by the iteration index from the tableau's rows, so the compiled step
-        holds one copy of the dynamics instead of s + 1 (``benchmarks/latency.py``:
-        XLA compile of 5 s of the 12-DoF free-fall rod 3.8 -> 1.7 s, HLO 21.7k ->
-        12.4k lines; the 16-DoF cable arm 5.8 -> 2.6 s; the results agree to 1e-11
-        and warm runs got faster, 114 -> 92 ms). The
+        ``(f0, lin0)``: the vector field and its linear part at the step's start. The
+        evaluations of a step (the stages 2..s and the one at ``t1``, the next step's
+        first stage) run as one ``lax.fori_loop`` whose body evaluates the vector
+        field once, at the point picked by the iteration index from the tableau's
+        rows, so the compiled step holds one copy of the dynamics instead of s
+        (``benchmarks/latency.py``: XLA compile of 5 s of the 12-DoF free-fall rod
+        3.8 -> 1.7 s, HLO 21.7k -> 12.4k lines; the 16-DoF cable arm 5.8 -> 2.6 s;
+        the results agree to 1e-11 and warm runs got faster, 114 -> 92 ms). The
         stage values ``u`` are the rows of an ``(s, n)`` carry. W, and so its
         Cholesky factor, is that of the step's start, as before.
         """
         tab = self.tableau
         s = len(tab.m)
         h = t1 - t0
-        c = h * tab.gamma
-        f0, lin0 = solver_state
         dt = y0.dtype
         # Rows 0..s-1: stage points y0 + sum_j a_ij u_j at t0 + c_i h; row s: y1 at t1.
         A = jnp.asarray(np.vstack([np.array(tab.a), np.array(tab.m)[None]]), dt)
         Cm = jnp.asarray(np.vstack([np.array(tab.C), np.zeros((1, s))]), dt)
         cs = jnp.asarray(np.append(np.array(tab.c), 1.0), dt)
-        first = 0 if made_jump is not False else 1
-
-        def evaluate(i, us, f_prev, lin_prev):
-            t = t0 + cs[i] * h
-            y = y0 + A[i] @ us
-
-            def fresh():
-                return self._evaluate(terms, t, y, args)
-
-            if first == 0:  # after a jump the start is evaluated again
-                need = (i > 0) | made_jump
-                return jax.lax.cond(need, fresh, lambda: (f_prev, lin_prev))
-            return fresh()
-
-        def stage_rhs(i, us, f):
-            return f + (Cm[i] / h) @ us
-
-        if first == 0:
-            f0, lin0 = evaluate(0, jnp.zeros((s,) + y0.shape, dt), f0, lin0)
-        solve = _mechanical_solver(lin0, c)
+        solve = _mechanical_solver(lin0, h * tab.gamma)
         us = jnp.zeros((s,) + y0.shape, dt).at[0].set(solve(f0))
 
         def body(i, carry):
-            us, f_prev, lin_prev = carry
-            f, lin = evaluate(i, us, f_prev, lin_prev)
+            us, _, _ = carry
+            f, lin = self._evaluate(terms, t0 + cs[i] * h, y0 + A[i] @ us, args)
             # row s (the step's end) only evaluates; its solve is discarded
-            u = solve(stage_rhs(i, us, f))
+            u = solve(f + (Cm[i] / h) @ us)
             us = jnp.where(i < s, us.at[jnp.minimum(i, s - 1)].set(u), us)
             return us, f, lin
 
@@ -316,10 +293,8 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
         # dynamics (gradient through 1 s of the free-fall rod: compile 12.6 -> 10.5 s,
         # warm 136 -> 127 ms). No effect on the forward program.
         us, f1, lin1 = jax.lax.fori_loop(1, s + 1, jax.checkpoint(body), (us, f0, lin0))
-        m = jnp.asarray(np.array(tab.m), dt)
-        e = jnp.asarray(np.array(tab.e), dt)
-        y1 = y0 + m @ us
-        y_error = e @ us
+        y1 = y0 + jnp.asarray(np.array(tab.m), dt) @ us
+        y_error = jnp.asarray(np.array(tab.e), dt) @ us
         dense_info = dict(y0=y0, y1=y1, k0=f0 * h, k1=f1 * h)
         return y1, y_error, dense_info, (f1, lin1), diffrax.RESULTS.successful
 
