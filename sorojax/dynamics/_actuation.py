@@ -52,22 +52,37 @@ def _offset3(path, X) -> Array:
     return jnp.concatenate([jnp.zeros((1,), yz.dtype), yz])
 
 
+def _span_offsets(linkage: Linkage, span: CableSpan, k: int):
+    """``(d, d')`` of a span at division ``k``'s points, ``(points, 3)`` each.
+
+    The offset and its arc-length derivative (``k`` 0-based); constants of the model.
+    """
+    dl = linkage.layout.links[span.link - 1].divisions[k]
+    X = _division_X(linkage, span.link, k, dl.X1)
+    path = jax.vmap(lambda x: _offset3(span.path, x))
+    d, dX = jax.jvp(path, (X,), (jnp.ones_like(X),))
+    return d, dX / linkage.links[span.link - 1].length
+
+
+def _division_strain_and_weights(linkage: Linkage, data: LinkageData, link_no, k, q):
+    """``(xi, w L)``: strains ``Phi q + xi_ref`` at division ``k``'s points, weights.
+
+    The quadrature weights are in metres (times the division's length).
+    """
+    dd = data.links[link_no - 1].divisions[k]
+    dl = linkage.layout.links[link_no - 1].divisions[k]
+    xi = jnp.einsum("pij,j->pi", dd.Phi, q[dd.offset : dd.offset + dd.n_dof])
+    wL = jnp.asarray(dl.w) * linkage.links[link_no - 1].divisions[k].length
+    return xi + dd.xi_ref, wL
+
+
 def span_length(linkage: Linkage, data: LinkageData, span: CableSpan, q) -> Array:
     """Length of the cable inside ``span`` at ``q`` [m]."""
-    link = linkage.links[span.link - 1]
-    L_link = link.length
     total = jnp.zeros((), q.dtype)
     for k in _span_divisions(linkage, span):
-        dd = data.links[span.link - 1].divisions[k]
-        dl = linkage.layout.links[span.link - 1].divisions[k]
-        X = _division_X(linkage, span.link, k, dl.X1)
-        path = jax.vmap(lambda x: _offset3(span.path, x))
-        d, dX = jax.jvp(path, (X,), (jnp.ones_like(X),))
-        d_prime = dX / L_link
-        xi = jnp.einsum("pij,j->pi", dd.Phi, q[dd.offset : dd.offset + dd.n_dof])
-        xi = xi + dd.xi_ref
+        d, d_prime = _span_offsets(linkage, span, k)
+        xi, wL = _division_strain_and_weights(linkage, data, span.link, k, q)
         tangent = xi[:, 3:] + jnp.cross(xi[:, :3], d) + d_prime
-        wL = jnp.asarray(dl.w) * link.divisions[k].length
         total = total + jnp.sum(wL * _safe_norm(tangent))
     return total
 
@@ -144,23 +159,14 @@ def _spans_force(linkage: Linkage, data: LinkageData, cables, q, tensions) -> Ar
     Q = jnp.zeros_like(q)
     for (link_no, k), members in groups.items():
         dd = data.links[link_no - 1].divisions[k]
-        dl = linkage.layout.links[link_no - 1].divisions[k]
-        L_link = linkage.links[link_no - 1].length
-        X = _division_X(linkage, link_no, k, dl.X1)
-        d, d_prime = [], []
-        for _, span in members:
-            path = jax.vmap(lambda x, span=span: _offset3(span.path, x))
-            d_m, dX = jax.jvp(path, (X,), (jnp.ones_like(X),))
-            d.append(d_m)
-            d_prime.append(dX / L_link)
-        d, d_prime = jnp.stack(d), jnp.stack(d_prime)  # (members, points, 3)
+        offsets = [_span_offsets(linkage, span, k) for _, span in members]
+        d = jnp.stack([o[0] for o in offsets])  # (members, points, 3)
+        d_prime = jnp.stack([o[1] for o in offsets])
         T = tensions[np.array([ci for ci, _ in members])]
-        xi = jnp.einsum("pij,j->pi", dd.Phi, q[dd.offset : dd.offset + dd.n_dof])
-        xi = xi + dd.xi_ref
+        xi, wL = _division_strain_and_weights(linkage, data, link_no, k, q)
         t = xi[None, :, 3:] + jnp.cross(xi[None, :, :3], d) + d_prime
         n = _safe_norm(t)
         t_hat = t / jnp.where(n > 0, n, 1.0)[..., None]
-        wL = jnp.asarray(dl.w) * linkage.links[link_no - 1].divisions[k].length
         G = jnp.concatenate([jnp.cross(d, t_hat), t_hat], axis=-1)  # (m, p, 6)
         G = jnp.einsum("m,p,mpa->pa", T, wL, G)
         Q = Q.at[dd.offset : dd.offset + dd.n_dof].add(
