@@ -19,10 +19,22 @@ autodiff Jacobian -- and its order conditions hold for *any* W (Steihaug & Wolfb
 The method is ROS34PW2 (Rang & Angermann, BIT 45, 2005): 4 stages, order 3, embedded
 order 2, stiffly accurate, L-stable, a W-method. It is run in the transformed variables
 ``u_i = sum_j gamma_ij k_j`` (Hairer & Wanner, eq. IV.7.4'), so no matrix-vector
-product with W is needed. The vector field at the step's end is evaluated for the
-next step's first stage (first same as last) and gives a cubic Hermite dense output.
-Non-autonomous vector fields are handled as a W-method whose W has no time column
-(the order is kept).
+product with W is needed. Non-autonomous vector fields are handled as a W-method
+whose W has no time column (the order is kept).
+
+Dense output is a cubic Hermite polynomial on ``(y0, h f(y0), y1, k_s)``.
+
+* With a :class:`MechanicalTerm` the step is self-contained: its s stages are its
+  only evaluations, run as one loop (one copy of the dynamics in the compiled
+  program), and no first-same-as-last state is carried. The end slope is the last
+  stage's ``k_s``: the method is stiffly accurate (``y1 = Y_s + sum_j gamma_sj k_j``
+  with ``Y_s`` the last stage point, at ``t1``), so the stage equation gives
+  ``k_s = h f(Y_s) + h W (y1 - Y_s) = h f(y1) + h (W - J)(y1 - Y_s) + ...``: exact
+  for the stiff linear part (W), with an error O(h^3) from the rest of the Jacobian
+  (``y1 - Y_s = O(h^2)``), the order of the step's error estimate. Step ends are
+  exact; between them the interpolant is second order (third with the exact slope).
+* Any other term evaluates the vector field at the step's end for the next step's
+  first stage (first same as last) and uses it as the end slope.
 """
 
 from collections.abc import Callable
@@ -33,7 +45,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax.scipy.linalg import cho_factor, cho_solve, lu_factor, lu_solve
+from jax.scipy.linalg import cho_solve, lu_factor, lu_solve
 
 # ROS34PW2 (Rang & Angermann, BIT 45, 2005): alpha_ij, gamma_ij (j < i), gamma_ii,
 # b, and the embedded b_hat, in the standard Rosenbrock form
@@ -79,6 +91,9 @@ class RosenbrockTableau(eqx.Module):
         c: (s,) stage times (row sums of alpha).
         m: (s,) solution weights.
         e: (s,) error weights.
+        d: (s,) weights of the last stage's ``k_s = sum_j d_j u_j`` (the last row
+            of ``Gamma^-1``): the end slope ``~ h f(y1)`` of a stiffly accurate method.
+        stiffly_accurate: ``b`` is the last row of ``alpha + Gamma`` and ``c_s = 1``.
         order: classical order of the solution.
     """
 
@@ -88,6 +103,8 @@ class RosenbrockTableau(eqx.Module):
     c: tuple[float, ...] = eqx.field(static=True)
     m: tuple[float, ...] = eqx.field(static=True)
     e: tuple[float, ...] = eqx.field(static=True)
+    d: tuple[float, ...] = eqx.field(static=True)
+    stiffly_accurate: bool = eqx.field(static=True)
     order: int = eqx.field(static=True)
 
     @classmethod
@@ -105,6 +122,11 @@ class RosenbrockTableau(eqx.Module):
             c=vec(alpha.sum(axis=1)),
             m=vec(b @ gi),
             e=vec((b - b_hat) @ gi),
+            d=vec(gi[-1]),
+            stiffly_accurate=bool(
+                np.allclose(alpha[-1] + gamma_mat[-1], b, rtol=0, atol=1e-14)
+                and np.isclose(alpha[-1].sum(), 1.0, rtol=0, atol=1e-14)
+            ),
             order=order,
         )
 
@@ -156,18 +178,24 @@ def _mechanical_term(terms) -> tuple[MechanicalTerm, object] | None:
     return None
 
 
-def _mechanical_solver(matrices, c):
-    """``x = (I/c - W)^-1 r`` for ``W = [[0, I], [-M^-1 K, -M^-1 D]]``."""
+def _mechanical_factor(matrices, c):
+    """``(L, M, K)``: the factor of ``(I/c - W)`` for ``W = [[0, I], [-M^-1 K, -M^-1 D]]``.
+
+    ``L`` is the lower Cholesky factor of ``M + c D + c^2 K`` (n x n).
+    """
     M, K, D = matrices
+    K = jnp.broadcast_to(K, M.shape)
+    D = jnp.broadcast_to(D, M.shape)
+    return jnp.linalg.cholesky(M + c * D + (c * c) * K), M, K
+
+
+def _mechanical_solve(factor, c, r):
+    """``x = (I/c - W)^-1 r`` from :func:`_mechanical_factor`'s ``(L, M, K)``."""
+    L, M, K = factor
     n = M.shape[0]
-    fac = cho_factor(M + c * D + (c * c) * K)
-
-    def solve(r):
-        rq, rv = r[:n], r[n:]
-        xv = cho_solve(fac, c * (M @ rv - c * (K @ rq)))
-        return jnp.concatenate([c * (rq + xv), xv])
-
-    return solve
+    rq, rv = r[:n], r[n:]
+    xv = cho_solve((L, True), c * (M @ rv - c * (K @ rq)))
+    return jnp.concatenate([c * (rq + xv), xv])
 
 
 def _dense_solver(Jac, c):
@@ -220,11 +248,15 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
                 f"RosenbrockW needs a one-dimensional array state; got shape "
                 f"{jnp.shape(y0)} (flatten the state, e.g. with jax.flatten_util)."
             )
+        if _mechanical_term(terms) is not None:
+            return None  # the mechanical step evaluates its own start
         return self._evaluate(terms, t0, y0, args)
 
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
         """One step of the method (see the module docstring)."""
         tab = self.tableau
+        if _mechanical_term(terms) is not None:
+            return self._mechanical_step(terms, t0, t1, y0, args)
         # First same as last, unless the vector field jumped at t0 (diffrax's jump_ts).
         if made_jump is False:  # a caller's own loop (sorojax.Environment): no cond,
             f0, lin0 = solver_state  # so no second copy of the vector field
@@ -234,8 +266,6 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
                 lambda: self._evaluate(terms, t0, y0, args),
                 lambda: solver_state,
             )
-        if _mechanical_term(terms) is not None:
-            return self._mechanical_step(terms, t0, t1, y0, args, f0, lin0)
         h = t1 - t0
         c = h * tab.gamma
         solve = _dense_solver(lin0, c)
@@ -255,48 +285,58 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
         dense_info = dict(y0=y0, y1=y1, k0=f0 * h, k1=f1 * h)
         return y1, y_error, dense_info, (f1, lin1), diffrax.RESULTS.successful
 
-    def _mechanical_step(self, terms, t0, t1, y0, args, f0, lin0):
+    def _mechanical_step(self, terms, t0, t1, y0, args):
         """:meth:`step` for a :class:`MechanicalTerm`: one vector field in the program.
 
-        ``(f0, lin0)``: the vector field and its linear part at the step's start. The
-        evaluations of a step (the stages 2..s and the one at ``t1``, the next step's
-        first stage) run as one ``lax.fori_loop`` whose body evaluates the vector
+        The s stages run as one ``lax.fori_loop`` whose body evaluates the vector
         field once, at the point picked by the iteration index from the tableau's
-        rows, so the compiled step holds one copy of the dynamics instead of s
-        (``benchmarks/latency.py``: XLA compile of 5 s of the 12-DoF free-fall rod
-        3.8 -> 1.7 s, HLO 21.7k -> 12.4k lines; the 16-DoF cable arm 5.8 -> 2.6 s;
-        the results agree to 1e-11 and warm runs got faster, 114 -> 92 ms). The
-        stage values ``u`` are the rows of an ``(s, n)`` carry. W, and so its
-        Cholesky factor, is that of the step's start, as before.
+        rows, so the compiled step holds one copy of the dynamics, and the step
+        carries no state: no evaluation in :meth:`init` and none re-done after a jump
+        (``benchmarks/latency.py``: the gradient through 1 s of the free-fall rod
+        held 7 copies of the dynamics with a first-same-as-last state evaluated in
+        ``init``). The first row, at ``y0``, also gives W and its Cholesky factor,
+        kept for the step's other rows. The end slope of the dense output is the
+        last stage's ``k_s`` (module docstring). The stage values ``u`` are the rows
+        of an ``(s, n)`` carry.
         """
         tab = self.tableau
+        if not tab.stiffly_accurate:
+            raise ValueError(
+                "RosenbrockW with a MechanicalTerm takes its dense output's end slope "
+                "from the last stage, which needs a stiffly accurate tableau (b = the "
+                "last row of alpha + Gamma, c_s = 1); use ROS34PW2 or such a method."
+            )
         s = len(tab.m)
         h = t1 - t0
+        c = h * tab.gamma
         dt = y0.dtype
-        # Rows 0..s-1: stage points y0 + sum_j a_ij u_j at t0 + c_i h; row s: y1 at t1.
-        A = jnp.asarray(np.vstack([np.array(tab.a), np.array(tab.m)[None]]), dt)
-        Cm = jnp.asarray(np.vstack([np.array(tab.C), np.zeros((1, s))]), dt)
-        cs = jnp.asarray(np.append(np.array(tab.c), 1.0), dt)
-        solve = _mechanical_solver(lin0, h * tab.gamma)
-        us = jnp.zeros((s,) + y0.shape, dt).at[0].set(solve(f0))
+        n = y0.shape[0] // 2
+        A = jnp.asarray(np.array(tab.a), dt)
+        Cm = jnp.asarray(np.array(tab.C), dt)
+        cs = jnp.asarray(np.array(tab.c), dt)
 
         def body(i, carry):
-            us, _, _ = carry
+            us, factor, f0 = carry
             f, lin = self._evaluate(terms, t0 + cs[i] * h, y0 + A[i] @ us, args)
-            # row s (the step's end) only evaluates; its solve is discarded
-            u = solve(f + (Cm[i] / h) @ us)
-            us = jnp.where(i < s, us.at[jnp.minimum(i, s - 1)].set(u), us)
-            return us, f, lin
+            # W is that of the step's start: factored in the first row only
+            factor = jax.lax.cond(
+                i == 0, lambda: _mechanical_factor(lin, c), lambda: factor
+            )
+            u = _mechanical_solve(factor, c, f + (Cm[i] / h) @ us)
+            return us.at[i].set(u), factor, jnp.where(i == 0, f, f0)
 
+        mat = jnp.zeros((n, n), dt)
+        init = (jnp.zeros((s,) + y0.shape, dt), (mat, mat, mat), jnp.zeros_like(y0))
         # Checkpointed body: reverse mode keeps only the loop's carry per iteration
         # and re-evaluates the body, instead of stacking every intermediate of the
         # dynamics (gradient through 1 s of the free-fall rod: compile 12.6 -> 10.5 s,
         # warm 136 -> 127 ms). No effect on the forward program.
-        us, f1, lin1 = jax.lax.fori_loop(1, s + 1, jax.checkpoint(body), (us, f0, lin0))
+        us, _, f0 = jax.lax.fori_loop(0, s, jax.checkpoint(body), init)
         y1 = y0 + jnp.asarray(np.array(tab.m), dt) @ us
         y_error = jnp.asarray(np.array(tab.e), dt) @ us
-        dense_info = dict(y0=y0, y1=y1, k0=f0 * h, k1=f1 * h)
-        return y1, y_error, dense_info, (f1, lin1), diffrax.RESULTS.successful
+        k1 = jnp.asarray(np.array(tab.d), dt) @ us
+        dense_info = dict(y0=y0, y1=y1, k0=f0 * h, k1=k1)
+        return y1, y_error, dense_info, None, diffrax.RESULTS.successful
 
     def func(self, terms, t0, y0, args):
         """The vector field at ``(t0, y0)``."""
