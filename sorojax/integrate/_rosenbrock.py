@@ -179,7 +179,7 @@ def _mechanical_term(terms) -> tuple[MechanicalTerm, object] | None:
 
 
 def _mechanical_factor(matrices, c):
-    """``(L, M, K)``: the factor of ``(I/c - W)`` for ``W = [[0, I], [-M^-1 K, -M^-1 D]]``.
+    """``(L, M, K)``: ``(I/c - W)`` factored, ``W = [[0, I], [-M^-1 K, -M^-1 D]]``.
 
     ``L`` is the lower Cholesky factor of ``M + c D + c^2 K`` (n x n).
     """
