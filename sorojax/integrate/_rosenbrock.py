@@ -242,7 +242,11 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
         return f, Jac
 
     def init(self, terms, t0, t1, y0, args):
-        """First-same-as-last state: the vector field and its linear part at y0."""
+        """The solver's state (None for a :class:`MechanicalTerm`).
+
+        A mechanical step evaluates its own start; any other term carries the
+        first-same-as-last vector field and Jacobian.
+        """
         if jnp.ndim(y0) != 1:
             raise ValueError(
                 f"RosenbrockW needs a one-dimensional array state; got shape "
@@ -258,7 +262,7 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
         if _mechanical_term(terms) is not None:
             return self._mechanical_step(terms, t0, t1, y0, args)
         # First same as last, unless the vector field jumped at t0 (diffrax's jump_ts).
-        if made_jump is False:  # a caller's own loop (sorojax.Environment): no cond,
+        if made_jump is False:  # a caller's own loop: no cond,
             f0, lin0 = solver_state  # so no second copy of the vector field
         else:
             f0, lin0 = jax.lax.cond(
