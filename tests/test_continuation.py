@@ -81,7 +81,9 @@ def test_von_mises_truss_snap_through_folds_at_analytic_limit_load():
     ends on the snapped (inverted) branch; there the apex height matches F(y)
     pointwise (1e-8). A plain solve at 1.1 F_max started from the path's last
     point before the fold cannot stay on the near branch (none exists there): it
-    jumps (apex at least 2 cm below the fold's)."""
+    either fails (a result code: Newton has no nearby root; which of the two
+    happens depends on rounding along the Newton path) or jumps (apex at least
+    2 cm below the fold's)."""
     lk, F_max = von_mises_truss()
     path = sj.continuation(lk, 0.0, 1.5)
     assert path.status == "reached p1"
@@ -99,5 +101,7 @@ def test_von_mises_truss_snap_through_folds_at_analytic_limit_load():
     assert np.abs(F / F_max - path.p).max() < 1e-8
     assert y[-1] < -0.07  # snapped through
     beyond, _ = von_mises_truss(load_factor=1.1)
-    jump = sj.solve_statics(beyond, path.q[i0 - 1], warn_unstable=False)
-    assert float(sj.tip_pose(lk, jump.q)[1, 3]) < y[i0] - 0.02
+    jump = sj.solve_statics(beyond, path.q[i0 - 1], warn_unstable=False, throw=False)
+    apex = float(sj.tip_pose(lk, jump.q)[1, 3])
+    failed = jump.result != sj.RESULTS.successful
+    assert failed or apex < y[i0] - 0.02, f"converged near the fold: apex {apex}"
