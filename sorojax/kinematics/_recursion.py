@@ -40,11 +40,13 @@ from ..lie import Ad, Ad_inv, ad
 from ..model._precompute import LinkageData
 from ._step import ad_apply as _ad_apply
 from ._step import (
+    ad_apply_many,
     exp_and_tangent,
     magnus6,
     magnus6_apply,
     magnus6_apply_transpose,
 )
+from ._step import ad_transpose_apply as _ad_transpose_apply
 
 
 def _Ad(R, p):
@@ -92,14 +94,19 @@ def steps(data: LinkageData, q, qd=None) -> Steps:
         return _steps6(st, xi, qd)
     xi1, xi2 = xi[:, 0], xi[:, 1]
     h, c = st.h[:, None], st.c[:, None]
-    Omega = 0.5 * h * (xi1 + xi2) + c * _ad_apply(xi1, xi2)
     if qd is None:
+        Omega = 0.5 * h * (xi1 + xi2) + c * _ad_apply(xi1, xi2)
         R, p, T = jax.vmap(exp_and_tangent)(Omega)
         return Steps(R, p, T, xi1, xi2)
     xid = jnp.einsum("szan,n->sza", st.Phi_z, qd)
     xid1, xid2 = xid[:, 0], xid[:, 1]
-    Od = 0.5 * h * (xid1 + xid2) + c * (_ad_apply(xi1, xid2) - _ad_apply(xi2, xid1))
-    Odd = 2.0 * c * _ad_apply(xid1, xid2)
+    # the four products in one batch (same arithmetic, a smaller program)
+    a12, a1d2, a2d1, ad12 = ad_apply_many(
+        [(xi1, xi2), (xi1, xid2), (xi2, xid1), (xid1, xid2)]
+    )
+    Omega = 0.5 * h * (xi1 + xi2) + c * a12
+    Od = 0.5 * h * (xid1 + xid2) + c * (a1d2 - a2d1)
+    Odd = 2.0 * c * ad12
     (R, p, T), (_, _, Td) = jax.vmap(
         lambda O, dO: jax.jvp(exp_and_tangent, (O,), (dO,))
     )(Omega, Od)
@@ -135,13 +142,6 @@ def step_jacobians(data: LinkageData, k: Steps, V) -> Array:
     h, c = st.h[:, None, None], st.c[:, None, None]
     ad1, ad2 = jax.vmap(ad)(k.xi1), jax.vmap(ad)(k.xi2)
     return 0.5 * h * (P1 + P2) + c * (ad1 @ P2 - ad2 @ P1)
-
-
-def _ad_transpose_apply(a, z):
-    """``ad(a)^T z`` for stacks of twists ``a`` and wrenches ``z`` (moment first)."""
-    w, v = a[..., :3], a[..., 3:]
-    m, f = z[..., :3], z[..., 3:]
-    return jnp.concatenate([jnp.cross(m, w) + jnp.cross(f, v), jnp.cross(f, w)], -1)
 
 
 def step_jacobians_transpose(data: LinkageData, k: Steps, z) -> Array:
