@@ -33,7 +33,6 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax import lax
 from jaxtyping import Array, Float
 
 from ..lie import Ad, Ad_inv, ad
@@ -257,19 +256,25 @@ def _prefix_poses(R, p):
     """Poses ``G_a = E_0 ... E_{a-1}`` relative to each chain's first point.
 
     ``R, p``: ``(n_chains, m, ...)``; returns ``(R_G, p_G)`` of shape
-    ``(n_chains, m + 1, ...)`` (``G_0 = I``), by a log-depth associative scan.
+    ``(n_chains, m + 1, ...)`` (``G_0 = I``), by recursive doubling (Hillis-Steele):
+    after level ``k`` every entry holds the product of the ``2^k`` steps ending at it.
+    ``ceil(log2 m)`` levels of one batched composition each: a smaller program than
+    ``lax.associative_scan``'s up- and down-sweeps with their interleaving (compile
+    time follows the program's size), and the same depth.
     """
-
-    def compose(a, b):
-        Ra, pa = a
-        Rb, pb = b
-        return Ra @ Rb, pa + jnp.einsum("...ab,...b->...a", Ra, pb)
-
-    RG, pG = lax.associative_scan(compose, (R, p), axis=1)
+    m = R.shape[1]
     eye = jnp.broadcast_to(jnp.eye(3, dtype=R.dtype), R[:, :1].shape)
+    k = 1
+    while k < m:
+        # entry a >= k composes with the product ending at a - k; the first k are done
+        Ra, pa = R[:, :-k], p[:, :-k]
+        Rb, pb = R[:, k:], p[:, k:]
+        R = jnp.concatenate([R[:, :k], Ra @ Rb], axis=1)
+        p = jnp.concatenate([p[:, :k], pa + jnp.einsum("...ab,...b->...a", Ra, pb)], 1)
+        k *= 2
     return (
-        jnp.concatenate([eye, RG], axis=1),
-        jnp.concatenate([jnp.zeros_like(p[:, :1]), pG], axis=1),
+        jnp.concatenate([eye, R], axis=1),
+        jnp.concatenate([jnp.zeros_like(p[:, :1]), p], axis=1),
     )
 
 
