@@ -9,61 +9,145 @@ so a second run's first call loads the program instead of compiling it.
 """
 
 import argparse
+import pathlib
 import sys
 import time
 
+_DEMO_EXPORT = pathlib.Path(__file__).parent / "data" / "demo_statics.jaxexport"
+"""The demo's program exported ahead of time (``jax.export``; see :func:`_demo`)."""
 
-def _demo(args) -> int:
+
+def _demo_program(linkage):
+    """The demo's one program: statics and the poses at the solution (flat arrays)."""
+    from .kinematics import forward_kinematics
+    from .statics import solve_statics
+
+    def program():
+        sol = solve_statics(linkage, throw=False)
+        g = forward_kinematics(linkage, sol.q)
+        return (
+            sol.q,
+            sol.result._value,
+            sol.num_steps,
+            sol.residual_norm,
+            sol.stable,
+            sol.min_eigenvalue,
+            g,
+        )
+
+    return program
+
+
+def write_demo_export(path=_DEMO_EXPORT) -> pathlib.Path:
+    """Export the demo's program for this JAX to ``path``.
+
+    For maintainers, after a change to the solver or the scene:
+    ``python -c "import sorojax._cli as c; c.write_demo_export()"``.
+    ``tests/test_cli.py`` checks that the file still gives the results of the code.
+    """
     import jax
 
     jax.config.update("jax_enable_x64", True)
-    import numpy as np
-
-    from . import RESULTS, enable_compilation_cache, forward_kinematics, solve_statics
     from .scenes import demo_linkage
 
+    exported = jax.export.export(jax.jit(_demo_program(demo_linkage())))()
+    path = pathlib.Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(exported.serialize())
+    return path
+
+
+def _exported_demo(path=_DEMO_EXPORT):
+    """The exported demo program's ``call``, or None where it cannot serve.
+
+    None without the file, without ``flatbuffers`` (JAX's deserialiser), for a JAX
+    that cannot read it, or on a backend other than the CPU it was exported for.
+    """
+    import jax
+
+    try:
+        exported = jax.export.deserialize(bytearray(pathlib.Path(path).read_bytes()))
+    except Exception:  # noqa: BLE001 - any failure: trace the program instead
+        return None
+    if tuple(exported.platforms) != (jax.default_backend(),):
+        return None
+    return exported.call
+
+
+def _prepare(output: bool, box: dict) -> None:
+    """Build the scene and, for a figure, import matplotlib (beside the compile)."""
+    from .scenes import demo_linkage
+
+    box["linkage"] = demo_linkage()
+    if output:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot  # noqa: F401
+        from mpl_toolkits.mplot3d import axes3d  # noqa: F401
+
+        from . import viz  # noqa: F401
+
+
+def _demo(args) -> int:
+    import threading
+
+    import jax
+
+    jax.config.update("jax_enable_x64", True)  # before any array is made
+    # The scene and matplotlib's import (~0.5 s) run in a thread while XLA compiles
+    # (it releases the GIL).
+    box: dict = {}
+    prepare = threading.Thread(target=_prepare, args=(bool(args.output), box))
+    prepare.start()
+    import numpy as np
+
+    from . import RESULTS, compiler_options, enable_compilation_cache
+
     cache = enable_compilation_cache()
-    linkage = demo_linkage()
-    print("sorojax demo: rigid link on a revolute joint + two-division soft link")
-    print(f"  ndof = {linkage.n_dof}, significant points = {linkage.n_points}")
+    # The program exported ahead of time skips tracing and lowering (~0.7 s of a
+    # first call); without it (another JAX, a GPU) it is traced here as usual.
+    program = None if args.trace else _exported_demo()
+    source = "exported program" if program is not None else "traced program"
+    if program is None:
+        prepare.join()
+        program = _demo_program(box["linkage"])
+    run = jax.jit(program, compiler_options=compiler_options())
     t0 = time.perf_counter()
-    sol = solve_statics(linkage, throw=False)
-    jax.block_until_ready(sol.q)
+    q, code, steps, residual, stable, min_eig, g = jax.block_until_ready(run())
     t_first = time.perf_counter() - t0
     runs = []
     for _ in range(5):
         t0 = time.perf_counter()
-        jax.block_until_ready(solve_statics(linkage, throw=False).q)
+        jax.block_until_ready(run())
         runs.append(time.perf_counter() - t0)
-    g = np.asarray(forward_kinematics(linkage, sol.q))
+    prepare.join()
+    linkage = box["linkage"]
+    print("sorojax demo: rigid link on a revolute joint + two-division soft link")
+    print(f"  ndof = {linkage.n_dof}, significant points = {linkage.n_points}")
+    g = np.asarray(g)
     tip = g[linkage.tip_point(linkage.n_links)]
     np.set_printoptions(precision=5, suppress=True)
-    ok = bool(sol.result == RESULTS.successful)
-    print("  statics: converged" if ok else f"  statics: FAILED ({sol.result})")
+    ok = int(code) == RESULTS.successful._value
+    print("  statics: converged" if ok else f"  statics: FAILED (result {int(code)})")
+    print(f"  iterations = {int(steps)}, residual = {float(residual):.2e}")
     print(
-        f"  iterations = {int(sol.num_steps)}, "
-        f"residual = {float(sol.residual_norm):.2e}"
+        f"  equilibrium: {'stable' if bool(stable) else 'UNSTABLE'} (smallest "
+        f"scaled tangent-stiffness eigenvalue {float(min_eig):.3g})"
     )
-    print(
-        f"  equilibrium: {'stable' if bool(sol.stable) else 'UNSTABLE'} (smallest "
-        f"scaled tangent-stiffness eigenvalue {float(sol.min_eigenvalue):.3g})"
-    )
-    print(f"  q = {np.asarray(sol.q)}")
+    print(f"  q = {np.asarray(q)}")
     print(f"  tip position [m] = {tip[:3, 3]}")
     print("  tip rotation =\n" + "\n".join("    " + str(r) for r in tip[:3, :3]))
     print(
-        f"  time: first call (trace, compile or load, run) {t_first:.2f} s, "
+        f"  time: first call ({source}: compile or load, run) {t_first:.2f} s, "
         f"warm median {1e3 * float(np.median(runs)):.2f} ms"
     )
     if cache is not None:
         print(f"  compiled programs cached in {cache} (a later first call loads them)")
     if args.output:
-        import matplotlib
-
-        matplotlib.use("Agg")
         from .viz import plot_configuration
 
-        fig, ax = plot_configuration(linkage, sol.q)
+        fig, ax = plot_configuration(linkage, q, poses=g)
         ax.set_title("sorojax demo: static equilibrium")
         fig.savefig(args.output, dpi=120)
         print(f"  figure written to {args.output}")
@@ -81,6 +165,11 @@ def main(argv=None) -> int:
     )
     demo.add_argument(
         "-o", "--output", default="sorojax-demo.png", help="PNG to write ('' for none)"
+    )
+    demo.add_argument(
+        "--trace",
+        action="store_true",
+        help="trace the program from the source instead of the exported one",
     )
     args = parser.parse_args(argv)
     if args.command == "demo":

@@ -16,6 +16,30 @@ def test_demo_runs_and_writes_png(tmp_path, capsys):
     assert out.stat().st_size > 10_000, "PNG too small to hold a rendered figure"
 
 
+def test_exported_demo_program_matches_the_code(tmp_path):
+    """The demo's program exported ahead of time (``sorojax/data``) computes what
+    the code as it is computes: the same result code and iterations, q and every
+    pose to 1e-10 (a stale file -- a changed solver or scene -- fails here; rewrite
+    it with ``write_demo_export``). A fresh export of the code round-trips too."""
+    import jax
+    import numpy as np
+
+    from sorojax._cli import _demo_program, _exported_demo, write_demo_export
+    from sorojax.scenes import demo_linkage
+
+    live = jax.jit(_demo_program(demo_linkage()))()
+    for path in (None, write_demo_export(tmp_path / "demo.jaxexport")):
+        call = _exported_demo() if path is None else _exported_demo(path)
+        assert call is not None, "the exported demo program cannot be loaded"
+        got = jax.jit(call)()
+        q, code, steps, _, stable, _, g = got
+        assert int(code) == int(live[1]) == 0 and int(steps) == int(live[2])
+        assert bool(stable) == bool(live[4])
+        np.testing.assert_allclose(q, live[0], rtol=0, atol=1e-10)
+        np.testing.assert_allclose(g, live[6], rtol=0, atol=1e-10)
+    assert _exported_demo(tmp_path / "missing.jaxexport") is None
+
+
 def test_compilation_cache_keeps_a_folder_already_set(tmp_path, monkeypatch):
     """A cache folder set before (here by the test configuration) is kept; "off" is off.
 

@@ -84,6 +84,30 @@ def test_import_sorojax_does_not_import_matplotlib():
     subprocess.run([sys.executable, "-c", code], check=True)
 
 
+def test_import_is_lazy_and_every_public_name_resolves():
+    """``import sorojax`` imports neither diffrax nor optimistix (names load on
+    first use: a statics script never waits for diffrax); every name in ``__all__``
+    and every submodule then resolves (``kinematics`` is the function, not the
+    submodule of that name), and an unknown name raises AttributeError."""
+    code = (
+        "import sys, sorojax as sj\n"
+        "assert not {'diffrax', 'optimistix', 'lineax'} & set(sys.modules)\n"
+        "assert callable(sj.kinematics)\n"
+        "sj.solve_statics\n"
+        "assert 'diffrax' not in sys.modules\n"
+        "missing = [n for n in sj.__all__ if getattr(sj, n, None) is None]\n"
+        "assert not missing, missing\n"
+        "assert sj.integrate.simulate is sj.simulate and 'simulate' in dir(sj)\n"
+        "try:\n"
+        "    sj.no_such_name\n"
+        "except AttributeError as e:\n"
+        "    assert 'no_such_name' in str(e)\n"
+        "else:\n"
+        "    raise SystemExit('no AttributeError')\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
 def test_aliases():
     assert plotq is plot_configuration
     assert plotq0 is plot_reference
@@ -272,6 +296,22 @@ def test_overlay_and_errors(demo):
         plotq(lk, q, n_circle=2)
     with pytest.raises(ValueError, match="shape"):
         plotq(lk, np.zeros(3))
+    with pytest.raises(ValueError, match=r"poses has shape \(3, 4, 4\)"):
+        plotq(lk, q, poses=np.zeros((3, 4, 4)))
+
+
+def test_poses_given_draw_the_same_tubes(demo):
+    """``poses=forward_kinematics(lk, q)`` (the demo passes the ones it has) draws
+    exactly what computing them inside does (ring centres equal, 0 tolerance)."""
+    lk, q = demo
+    _, ax1 = plotq(lk, q, n_circle=N_CIRCLE)
+    g = np.asarray(sorojax.forward_kinematics(lk, q))
+    _, ax2 = plotq(lk, q, n_circle=N_CIRCLE, poses=g)
+    b1, b2 = _by_gid(ax1, "sorojax-link2"), _by_gid(ax2, "sorojax-link2")
+    assert set(b1) == set(b2) and b1
+    for gid in b1:
+        np.testing.assert_array_equal(b1[gid].sorojax_centres, b2[gid].sorojax_centres)
+    plt.close("all")
 
 
 def test_rotation_interpolation_helpers():

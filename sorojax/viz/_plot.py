@@ -210,6 +210,7 @@ def plot_configuration(
     show_points: bool = False,
     color=None,
     n_sub: int = 3,
+    poses=None,
 ):
     """Plot a configuration of a linkage in 3D (the manual's ``plotq``).
 
@@ -233,13 +234,15 @@ def plot_configuration(
         n_sub: subdivisions between consecutive rod points (positions by a cubic
             Hermite curve, orientations by uniform rotation); 1 draws rings at the
             significant points only.
+        poses: ``forward_kinematics(linkage, q)`` if already at hand (it is then
+            not computed again), shape ``(n_points, 4, 4)``.
 
     Returns:
         ``(fig, ax)``.
 
     Raises:
         ValueError: ``ax`` is not a 3D axes, ``n_circle < 3`` or ``n_sub < 1``, or
-            ``q`` has the wrong shape.
+            ``q`` or ``poses`` has the wrong shape.
     """
     from mpl_toolkits.mplot3d import art3d
 
@@ -250,7 +253,15 @@ def plot_configuration(
     if int(n_sub) < 1:
         raise ValueError(f"n_sub = {n_sub!r}: give an integer >= 1.")
     n_circle, n_sub = int(n_circle), int(n_sub)
-    g = np.asarray(forward_kinematics(linkage, q), dtype=float)
+    if poses is None:
+        g = np.asarray(forward_kinematics(linkage, q), dtype=float)
+    else:
+        g = np.asarray(poses, dtype=float)
+        if g.shape != (linkage.n_points, 4, 4):
+            raise ValueError(
+                f"poses has shape {g.shape}; expected ({linkage.n_points}, 4, 4) "
+                "(forward_kinematics(linkage, q)), or pass poses=None."
+            )
     layout = linkage.layout
     fig, ax, prev = _prepare_axes(ax)
 
