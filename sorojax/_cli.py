@@ -9,6 +9,7 @@ so a second run's first call loads the program instead of compiling it.
 """
 
 import argparse
+import os
 import pathlib
 import sys
 import time
@@ -175,6 +176,20 @@ def main(argv=None) -> int:
     if args.command == "demo":
         return _demo(args)
     return 2
+
+
+def console() -> None:
+    """The ``sorojax`` console script: :func:`main`, then a prompt exit.
+
+    Once the command has printed and written its files (closed, and the compiled
+    programs already in the cache), the process exits without the interpreter's
+    teardown: destroying XLA's client and thread pools and every module took
+    ~0.2 s of the demo's ~3 s.
+    """
+    code = main()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
 
 
 if __name__ == "__main__":
