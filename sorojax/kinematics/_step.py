@@ -204,26 +204,31 @@ def _crosses(lhs, rhs):
     return jnp.cross(jnp.stack(lhs, axis=-2), jnp.stack(rhs, axis=-2))
 
 
-def ad_apply_many(pairs):
-    """``[ad(a) b for a, b in pairs]`` for stacks of twists, in one batch of crosses.
+def _ad_batch(pairs, transpose: bool):
+    """``ad(a) b`` (or ``ad(a)^T b``) for every pair, in one batch of crosses.
 
-    ``ad(a) b = (w x x, v x x + w x y)`` with ``a = (w, v)``, ``b = (x, y)``; all
-    operands are broadcast to one shape.
+    With ``a = (w, v)`` and ``b = (x, y)``: ``ad(a) b = (w x x, v x x + w x y)`` and,
+    for a wrench ``b = (m, f)``, ``ad(a)^T b = (m x w + f x v, f x w)``. All operands
+    are broadcast to one shape.
     """
     parts = [(a[..., :3], a[..., 3:], b[..., :3], b[..., 3:]) for a, b in pairs]
     flat = jnp.broadcast_arrays(*(x for part in parts for x in part))
     lhs, rhs = [], []
     for i in range(len(pairs)):
         w, v, x, y = flat[4 * i : 4 * i + 4]
-        lhs += [w, v, w]
-        rhs += [x, x, y]
+        lhs += [x, y, y] if transpose else [w, v, w]
+        rhs += [w, v, w] if transpose else [x, x, y]
     c = _crosses(lhs, rhs)
-    return [
-        jnp.concatenate(
-            [c[..., 3 * i, :], c[..., 3 * i + 1, :] + c[..., 3 * i + 2, :]], -1
-        )
-        for i in range(len(pairs))
-    ]
+    out = []
+    for i in range(len(pairs)):
+        c0, c1, c2 = c[..., 3 * i, :], c[..., 3 * i + 1, :], c[..., 3 * i + 2, :]
+        out.append(jnp.concatenate([c0 + c1, c2] if transpose else [c0, c1 + c2], -1))
+    return out
+
+
+def ad_apply_many(pairs):
+    """``[ad(a) b for a, b in pairs]`` for stacks of twists, in one batch of crosses."""
+    return _ad_batch(pairs, transpose=False)
 
 
 def ad_apply(a, b):
@@ -304,25 +309,8 @@ def magnus6_apply(xi, h, dxi):
 
 
 def ad_transpose_apply_many(pairs):
-    """``[ad(a)^T z for a, z in pairs]`` (twists ``a``, wrenches ``z``), in one batch.
-
-    ``ad(a)^T z = (m x w + f x v, f x w)`` with ``a = (w, v)``, ``z = (m, f)``; all
-    operands are broadcast to one shape.
-    """
-    parts = [(a[..., :3], a[..., 3:], z[..., :3], z[..., 3:]) for a, z in pairs]
-    flat = jnp.broadcast_arrays(*(x for part in parts for x in part))
-    lhs, rhs = [], []
-    for i in range(len(pairs)):
-        w, v, m, f = flat[4 * i : 4 * i + 4]
-        lhs += [m, f, f]
-        rhs += [w, v, w]
-    c = _crosses(lhs, rhs)
-    return [
-        jnp.concatenate(
-            [c[..., 3 * i, :] + c[..., 3 * i + 1, :], c[..., 3 * i + 2, :]], -1
-        )
-        for i in range(len(pairs))
-    ]
+    """``[ad(a)^T z for a, z in pairs]`` (twists a, wrenches z), in one batch."""
+    return _ad_batch(pairs, transpose=True)
 
 
 def ad_transpose_apply(a, z):
