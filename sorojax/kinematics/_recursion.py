@@ -33,19 +33,19 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax import lax
 from jaxtyping import Array, Float
 
 from ..lie import Ad, Ad_inv, ad
 from ..model._precompute import LinkageData
 from ._step import ad_apply as _ad_apply
+from ._step import ad_transpose_apply as _ad_transpose_apply
 from ._step import (
-    ad_apply_many,
     exp_and_tangent,
     magnus6,
     magnus6_apply,
     magnus6_apply_transpose,
 )
-from ._step import ad_transpose_apply as _ad_transpose_apply
 
 
 def _Ad(R, p):
@@ -99,13 +99,9 @@ def steps(data: LinkageData, q, qd=None) -> Steps:
         return Steps(R, p, T, xi1, xi2)
     xid = jnp.einsum("szan,n->sza", st.Phi_z, qd)
     xid1, xid2 = xid[:, 0], xid[:, 1]
-    # the four products in one batch (same arithmetic, a smaller program)
-    a12, a1d2, a2d1, ad12 = ad_apply_many(
-        [(xi1, xi2), (xi1, xid2), (xi2, xid1), (xid1, xid2)]
-    )
-    Omega = 0.5 * h * (xi1 + xi2) + c * a12
-    Od = 0.5 * h * (xid1 + xid2) + c * (a1d2 - a2d1)
-    Odd = 2.0 * c * ad12
+    Omega = 0.5 * h * (xi1 + xi2) + c * _ad_apply(xi1, xi2)
+    Od = 0.5 * h * (xid1 + xid2) + c * (_ad_apply(xi1, xid2) - _ad_apply(xi2, xid1))
+    Odd = 2.0 * c * _ad_apply(xid1, xid2)
     (R, p, T), (_, _, Td) = jax.vmap(
         lambda O, dO: jax.jvp(exp_and_tangent, (O,), (dO,))
     )(Omega, Od)
@@ -256,25 +252,19 @@ def _prefix_poses(R, p):
     """Poses ``G_a = E_0 ... E_{a-1}`` relative to each chain's first point.
 
     ``R, p``: ``(n_chains, m, ...)``; returns ``(R_G, p_G)`` of shape
-    ``(n_chains, m + 1, ...)`` (``G_0 = I``), by recursive doubling (Hillis-Steele):
-    after level ``k`` every entry holds the product of the ``2^k`` steps ending at it.
-    ``ceil(log2 m)`` levels of one batched composition each: a smaller program than
-    ``lax.associative_scan``'s up- and down-sweeps with their interleaving (compile
-    time follows the program's size), and the same depth.
+    ``(n_chains, m + 1, ...)`` (``G_0 = I``), by a log-depth associative scan.
     """
-    m = R.shape[1]
+
+    def compose(a, b):
+        Ra, pa = a
+        Rb, pb = b
+        return Ra @ Rb, pa + jnp.einsum("...ab,...b->...a", Ra, pb)
+
+    RG, pG = lax.associative_scan(compose, (R, p), axis=1)
     eye = jnp.broadcast_to(jnp.eye(3, dtype=R.dtype), R[:, :1].shape)
-    k = 1
-    while k < m:
-        # entry a >= k composes with the product ending at a - k; the first k are done
-        Ra, pa = R[:, :-k], p[:, :-k]
-        Rb, pb = R[:, k:], p[:, k:]
-        R = jnp.concatenate([R[:, :k], Ra @ Rb], axis=1)
-        p = jnp.concatenate([p[:, :k], pa + jnp.einsum("...ab,...b->...a", Ra, pb)], 1)
-        k *= 2
     return (
-        jnp.concatenate([eye, R], axis=1),
-        jnp.concatenate([jnp.zeros_like(p[:, :1]), p], axis=1),
+        jnp.concatenate([eye, RG], axis=1),
+        jnp.concatenate([jnp.zeros_like(p[:, :1]), pG], axis=1),
     )
 
 
