@@ -76,14 +76,18 @@ def _division_strain_and_weights(linkage: Linkage, data: LinkageData, link_no, k
     return xi + dd.xi_ref, wL
 
 
+def _cable_tangent(xi, d, d_prime):
+    """The cable's tangent ``nu + omega x d + d'`` from the strain ``(omega, nu)``."""
+    return xi[..., 3:] + jnp.cross(xi[..., :3], d) + d_prime
+
+
 def span_length(linkage: Linkage, data: LinkageData, span: CableSpan, q) -> Array:
     """Length of the cable inside ``span`` at ``q`` [m]."""
     total = jnp.zeros((), q.dtype)
     for k in _span_divisions(linkage, span):
         d, d_prime = _span_offsets(linkage, span, k)
         xi, wL = _division_strain_and_weights(linkage, data, span.link, k, q)
-        tangent = xi[:, 3:] + jnp.cross(xi[:, :3], d) + d_prime
-        total = total + jnp.sum(wL * _safe_norm(tangent))
+        total = total + jnp.sum(wL * _safe_norm(_cable_tangent(xi, d, d_prime)))
     return total
 
 
@@ -164,7 +168,7 @@ def _spans_force(linkage: Linkage, data: LinkageData, cables, q, tensions) -> Ar
         d_prime = jnp.stack([o[1] for o in offsets])
         T = tensions[np.array([ci for ci, _ in members])]
         xi, wL = _division_strain_and_weights(linkage, data, link_no, k, q)
-        t = xi[None, :, 3:] + jnp.cross(xi[None, :, :3], d) + d_prime
+        t = _cable_tangent(xi[None], d, d_prime)
         n = _safe_norm(t)
         t_hat = t / jnp.where(n > 0, n, 1.0)[..., None]
         G = jnp.concatenate([jnp.cross(d, t_hat), t_hat], axis=-1)  # (m, p, 6)

@@ -93,13 +93,12 @@ def steps(data: LinkageData, q, qd=None) -> Steps:
         return _steps6(st, xi, qd)
     xi1, xi2 = xi[:, 0], xi[:, 1]
     h, c = st.h[:, None], st.c[:, None]
+    Omega = 0.5 * h * (xi1 + xi2) + c * _ad_apply(xi1, xi2)
     if qd is None:
-        Omega = 0.5 * h * (xi1 + xi2) + c * _ad_apply(xi1, xi2)
         R, p, T = jax.vmap(exp_and_tangent)(Omega)
         return Steps(R, p, T, xi1, xi2)
     xid = jnp.einsum("szan,n->sza", st.Phi_z, qd)
     xid1, xid2 = xid[:, 0], xid[:, 1]
-    Omega = 0.5 * h * (xi1 + xi2) + c * _ad_apply(xi1, xi2)
     Od = 0.5 * h * (xid1 + xid2) + c * (_ad_apply(xi1, xid2) - _ad_apply(xi2, xid1))
     Odd = 2.0 * c * _ad_apply(xid1, xid2)
     (R, p, T), (_, _, Td) = jax.vmap(

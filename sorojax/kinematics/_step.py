@@ -51,6 +51,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..lie import hat3
+
 # theta^2 below which Taylor series are used: 10 terms leave < 1e-20 there, and the
 # closed forms (with cancellation ~ theta^5 in F) keep 2nd derivatives accurate above.
 _SMALL = 1.0
@@ -136,24 +138,6 @@ def _outer(a, b):
     return a[:, None] * b[None, :]
 
 
-def _hats(x):
-    """Skew matrices of the rows of ``x`` ``(k, 3)``: ``(k, 3, 3)``, one batch.
-
-    ``hat(x) y = x cross y`` (:func:`sorojax.lie.hat3`, one row at a time, slices
-    and stacks every component: a k-th of the traced operations here).
-    """
-    x0, x1, x2 = x[:, 0], x[:, 1], x[:, 2]
-    z = jnp.zeros_like(x0)
-    return jnp.stack(
-        [
-            jnp.stack([z, -x2, x1], axis=-1),
-            jnp.stack([x2, z, -x0], axis=-1),
-            jnp.stack([-x1, x0, z], axis=-1),
-        ],
-        axis=-2,
-    )
-
-
 def exp_and_tangent(Omega):
     """Rotation, translation of exp(Omega) and the 6x6 tangent operator T(Omega).
 
@@ -170,7 +154,7 @@ def exp_and_tangent(Omega):
         ``(R, p, T)`` with shapes ``(3, 3)``, ``(3,)``, ``(6, 6)``.
     """
     w, v = Omega[:3], Omega[3:]
-    W, V = _hats(Omega.reshape(2, 3))
+    W, V = hat3(Omega.reshape(2, 3))  # both in one batch
     theta2 = jnp.sum(w * w)
     wv = jnp.sum(w * v)
     eye = jnp.eye(3, dtype=Omega.dtype)

@@ -20,23 +20,26 @@ from ._utils import (
 )
 
 
-def hat3(w: Float[Array, 3]) -> Float[Array, "3 3"]:
-    """Map a 3-vector to its skew-symmetric matrix, ``hat3(w) @ x = cross(w, x)``.
+def hat3(w: Float[Array, "... 3"]) -> Float[Array, "... 3 3"]:
+    """Map 3-vectors to skew-symmetric matrices, ``hat3(w) @ x = cross(w, x)``.
 
     Args:
-        w: A 3-vector.
+        w: A 3-vector, or a stack of them ``(..., 3)`` (one batch of operations for
+            the stack, where a loop or ``vmap`` over calls traces them per call).
 
     Returns:
-        The 3x3 skew-symmetric matrix of ``w``.
+        The 3x3 skew-symmetric matrix of ``w``, ``(..., 3, 3)``.
     """
     w = jnp.asarray(w)
-    zero = jnp.zeros_like(w[0])
+    w0, w1, w2 = w[..., 0], w[..., 1], w[..., 2]
+    zero = jnp.zeros_like(w0)
     return jnp.stack(
         [
-            jnp.stack([zero, -w[2], w[1]]),
-            jnp.stack([w[2], zero, -w[0]]),
-            jnp.stack([-w[1], w[0], zero]),
-        ]
+            jnp.stack([zero, -w2, w1], axis=-1),
+            jnp.stack([w2, zero, -w0], axis=-1),
+            jnp.stack([-w1, w0, zero], axis=-1),
+        ],
+        axis=-2,
     )
 
 
