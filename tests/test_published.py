@@ -20,6 +20,7 @@ import importlib.util
 import math
 import pathlib
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -552,6 +553,38 @@ def test_sorosim_mechanics_reproduces_sorosim_stiffness_and_damping():
     assert K_default[0, 0] < 0.99 * K_ref[0, 0], "default torsion not below polar"
     shear_y = sum(o + 1 for o in _ORDERS[:4])  # first shear-y column
     assert K_default[shear_y, shear_y] < 0.99 * K_ref[shear_y, shear_y]
+
+
+def test_section_model_switch_reuses_the_compiled_program():
+    """The section model is data: ``sorosim_mechanics``, a given shear coefficient
+    and the default share one trace (hence one compile) of a jitted function, and
+    each still gets its own values (the trace sees the model's array leaves).
+    Reference: the same function called without jit (1e-12)."""
+    shaped = _two_link(
+        [sj.RectangularSection(_RECT_H, _RECT_W), sj.EllipticalSection(_ELL_A, _ELL_B)]
+    )
+    variants = [
+        shaped,
+        sj.sorosim_mechanics(shaped),
+        _two_link(
+            [
+                sj.RectangularSection(_RECT_H, _RECT_W, shear_coefficient=0.9),
+                sj.EllipticalSection(_ELL_A, _ELL_B, torsion="polar"),
+            ]
+        ),
+    ]
+
+    @eqx.filter_jit
+    @eqx.debug.assert_max_traces(max_traces=1)
+    def stiffness(lk):
+        return sj.stiffness_matrix(lk)
+
+    Ks = [np.asarray(stiffness(lk)) for lk in variants]  # raises on a second trace
+    for lk, K in zip(variants, Ks, strict=True):
+        np.testing.assert_allclose(K, sj.stiffness_matrix(lk), rtol=1e-12)
+    assert Ks[1][0, 0] > 1.01 * Ks[0][0, 0], "polar J not above Saint-Venant's"
+    assert variants[1].links[0].divisions[0].section.torsion == "polar"
+    assert variants[2].links[0].divisions[0].section.shear_coefficient == 0.9
 
 
 # --------------------------------------------------------------------- bad input

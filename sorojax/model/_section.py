@@ -22,13 +22,14 @@ constant and ``k_y``, ``k_z`` the shear coefficients. By default (``torsion =
 
 SoRoSim's model (polar moment ``J = Iy + Iz`` for torsion, no shear correction) is
 ``torsion="polar", shear_coefficient=1.0``; :func:`sorosim_mechanics` switches every
-section of a linkage, link or division to it. Inertia always uses the polar moment
+section of a linkage, link or division to it. The model is data (array leaves), not
+structure: models that differ only in it share compiled programs (and can be
+stacked for ``vmap``). Inertia always uses the polar moment
 ``Iy + Iz`` (rotary inertia about the axis); damping ``Upsilon`` uses the same ``J``
 and ``k A`` as the stiffness.
 """
 
 import abc
-import dataclasses
 import math
 
 import equinox as eqx
@@ -68,6 +69,16 @@ def _check_mechanics(name: str, torsion: str, shear_coefficient) -> float | None
     return k
 
 
+def _mechanics_arrays(name: str, torsion: str, shear_coefficient):
+    """``(polar, given, k)``: the section model as array leaves (module docstring)."""
+    k = _check_mechanics(name, torsion, shear_coefficient)
+    return (
+        jnp.asarray(1.0 if torsion == "polar" else 0.0, dtype=float),
+        jnp.asarray(0.0 if k is None else 1.0, dtype=float),
+        jnp.asarray(1.0 if k is None else k, dtype=float),
+    )
+
+
 class AbstractSection(eqx.Module):
     """A cross-section whose area, moments and stiffness constants depend on X1."""
 
@@ -93,10 +104,33 @@ class AbstractSection(eqx.Module):
 
 
 class _ShapedSection(AbstractSection):
-    """A section from its dimensions, with a torsion model and a shear coefficient."""
+    """A section from its dimensions, with a torsion model and a shear coefficient.
 
-    torsion: eqx.AbstractVar[str]
-    shear_coefficient: eqx.AbstractVar[float | None]
+    The model is held as array leaves (``polar``: 1 for ``J = Iy + Iz``, 0 for
+    Saint-Venant; ``given``: 1 when ``shear_coefficient`` is given, 0 for Cowper's;
+    ``k``: the given coefficient), so that switching it (e.g. with
+    :func:`sorosim_mechanics`) keeps the model's structure and reuses compiled
+    programs; ``torsion`` and ``shear_coefficient`` read them back.
+    """
+
+    polar: eqx.AbstractVar[Array]
+    given: eqx.AbstractVar[Array]
+    k: eqx.AbstractVar[Array]
+
+    @property
+    def torsion(self) -> str:
+        """``"polar"`` or ``"saint-venant"`` (on a concrete section)."""
+        return "polar" if float(self.polar) > 0.5 else "saint-venant"
+
+    @property
+    def shear_coefficient(self) -> float | None:
+        """The given shear coefficient, or ``None`` for Cowper's (concrete section)."""
+        return float(self.k) if float(self.given) > 0.5 else None
+
+    def with_mechanics(self, torsion: str, shear_coefficient=None):
+        """This section with another torsion model and shear coefficient."""
+        arrays = _mechanics_arrays(type(self).__name__, torsion, shear_coefficient)
+        return eqx.tree_at(lambda x: (x.polar, x.given, x.k), self, arrays)
 
     @abc.abstractmethod
     def _saint_venant(self, X1) -> Array:
@@ -108,17 +142,14 @@ class _ShapedSection(AbstractSection):
 
     def torsion_constant(self, X1) -> Array:
         """Torsion constant ``J`` at ``X1`` [m^4] under this section's model."""
-        if self.torsion == "polar":
-            _, Iy, Iz, _ = self.properties(X1)
-            return Iy + Iz
-        return self._saint_venant(X1)
+        _, Iy, Iz, _ = self.properties(X1)
+        return jnp.where(self.polar > 0.5, Iy + Iz, self._saint_venant(X1))
 
     def shear_coefficients(self, X1, poisson) -> tuple[Array, Array]:
         """Shear coefficients ``(k_y, k_z)`` (given, or Cowper's for ``poisson``)."""
-        if self.shear_coefficient is not None:
-            k = jnp.asarray(self.shear_coefficient, dtype=float)
-            return k, k
-        return self._cowper(X1, poisson)
+        ky, kz = self._cowper(X1, poisson)
+        use = self.given > 0.5
+        return jnp.where(use, self.k, ky), jnp.where(use, self.k, kz)
 
     def stiffness_constants(self, X1, poisson):
         """``(J, k_y A, k_z A)`` under this section's model."""
@@ -138,15 +169,15 @@ class CircularSection(_ShapedSection):
     """
 
     radius: AbstractProfile
-    torsion: str = eqx.field(static=True)
-    shear_coefficient: float | None = eqx.field(static=True)
+    polar: Array
+    given: Array
+    k: Array
 
     def __init__(self, radius, *, torsion="saint-venant", shear_coefficient=None):
         self.radius = as_profile("CircularSection.radius", radius)
-        self.shear_coefficient = _check_mechanics(
+        self.polar, self.given, self.k = _mechanics_arrays(
             "CircularSection", torsion, shear_coefficient
         )
-        self.torsion = torsion
 
     def properties(self, X1):
         """``(A, Iy, Iz, Ip)`` of a circle: pi r^2, pi r^4 / 4 (twice), pi r^4 / 2."""
@@ -193,18 +224,18 @@ class RectangularSection(_ShapedSection):
 
     height: AbstractProfile
     width: AbstractProfile
-    torsion: str = eqx.field(static=True)
-    shear_coefficient: float | None = eqx.field(static=True)
+    polar: Array
+    given: Array
+    k: Array
 
     def __init__(
         self, height, width, *, torsion="saint-venant", shear_coefficient=None
     ):
         self.height = as_profile("RectangularSection.height", height)
         self.width = as_profile("RectangularSection.width", width)
-        self.shear_coefficient = _check_mechanics(
+        self.polar, self.given, self.k = _mechanics_arrays(
             "RectangularSection", torsion, shear_coefficient
         )
-        self.torsion = torsion
 
     def properties(self, X1):
         """``(A, Iy, Iz, Ip)``: w h, w h^3 / 12, h w^3 / 12, Iy + Iz."""
@@ -251,16 +282,16 @@ class EllipticalSection(_ShapedSection):
 
     a: AbstractProfile
     b: AbstractProfile
-    torsion: str = eqx.field(static=True)
-    shear_coefficient: float | None = eqx.field(static=True)
+    polar: Array
+    given: Array
+    k: Array
 
     def __init__(self, a, b, *, torsion="saint-venant", shear_coefficient=None):
         self.a = as_profile("EllipticalSection.a", a)
         self.b = as_profile("EllipticalSection.b", b)
-        self.shear_coefficient = _check_mechanics(
+        self.polar, self.given, self.k = _mechanics_arrays(
             "EllipticalSection", torsion, shear_coefficient
         )
-        self.torsion = torsion
 
     def properties(self, X1):
         """``(A, Iy, Iz, Ip)``: pi a b, pi a b^3 / 4, pi a^3 b / 4, Iy + Iz."""
@@ -349,7 +380,7 @@ def sorosim_mechanics(tree):
 
     def switch(x):
         if isinstance(x, _ShapedSection):
-            return dataclasses.replace(x, torsion="polar", shear_coefficient=1.0)
+            return x.with_mechanics("polar", 1.0)
         return x
 
     return jax.tree_util.tree_map(
