@@ -1,4 +1,5 @@
-"""Test configuration: float64, strict promotion, persistent compile cache, fixtures.
+"""Test configuration: float64, strict promotion, LLVM -O0, persistent compile cache,
+fixtures.
 
 JAX compiles are the slow part of this suite on small CI machines: tests share model
 *structures* (a jitted sorojax function compiles once per structure, whatever the
@@ -11,7 +12,18 @@ import gc
 import os
 import pathlib
 
-import jax
+# LLVM at -O0 for the test programs, set before JAX starts its CPU backend: the same
+# HLO programs (XLA's graph passes, fusion and arithmetic are unchanged) compile in
+# about half the time and run 2-6x slower, which a compile-bound suite gains from
+# (empty-cache run 540 -> 381 s on 2 cores). tests/test_jit.py checks that programs
+# compiled at XLA's default level give the same results. SOROJAX_TEST_XLA_OPT=default
+# keeps XLA's default level.
+if os.environ.get("SOROJAX_TEST_XLA_OPT", "0") != "default":
+    os.environ["XLA_FLAGS"] = " ".join(
+        [os.environ.get("XLA_FLAGS", ""), "--xla_backend_optimization_level=0"]
+    ).strip()
+
+import jax  # noqa: E402
 import pytest
 
 jax.config.update("jax_enable_x64", True)
@@ -26,6 +38,35 @@ _cache = os.environ.get(
 jax.config.update("jax_compilation_cache_dir", _cache)
 jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
 jax.config.update("jax_persistent_cache_min_entry_size_bytes", -1)
+
+
+# Heaviest test files first (seconds of an empty-cache run on 2 cores): with
+# ``--dist loadfile --no-loadscope-reorder`` (pyproject.toml) the two workers take the
+# files in this order, each the next one when it is free, so that no long file is
+# left to run alone at the end. Unlisted files follow in their own order.
+_HEAVY_FIRST = (
+    "test_closed_loops.py",  # 64 s
+    "test_dynamics.py",  # 58
+    "test_actuation.py",  # 56
+    "test_statics.py",  # 54
+    "test_env.py",  # 53
+    "test_rosenbrock.py",  # 45
+    "test_example_learn.py",  # 46
+    "test_integrate.py",  # 38
+    "test_kinematics.py",  # 37
+    "test_examples.py",  # 33
+    "test_adequacy.py",  # 32
+    "test_stability.py",  # 30
+    "test_lie.py",  # 29
+    "test_example_design.py",  # 22
+    "test_jit.py",  # 19
+)
+
+
+def pytest_collection_modifyitems(config, items):
+    """Order the files as ``_HEAVY_FIRST`` (stable: tests keep their order)."""
+    rank = {name: i for i, name in enumerate(_HEAVY_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
 
 
 @pytest.fixture
@@ -47,3 +88,16 @@ def _release_compiled_programs():
     yield
     jax.clear_caches()
     gc.collect()
+
+
+@pytest.fixture(scope="session")
+def jit_optimised():
+    """``eqx.filter_jit`` at XLA's default LLVM level (-O2), for the suite's few
+    run-heavy programs (long, tight-tolerance integrations): they compile slower and
+    run 2-6x faster than at the suite's -O0."""
+    import equinox as eqx
+
+    import sorojax as sj
+
+    opts = {**sj.compiler_options(), "xla_backend_optimization_level": 2}
+    return lambda fun: eqx.filter_jit(fun, compiler_options=opts)

@@ -317,24 +317,23 @@ def test_constraint_terms_from_kinematics_equal_autodiff(kind):
             sj.ClosedLoopJoint(sj.Joint(kind, axis=(0.0, 0.6, 0.8), **kw), 2, 3, off)
         ],
     )
-    data = precompute(lk)
     rng = np.random.default_rng(7)
     q = jnp.asarray(rng.normal(size=lk.n_dof) * 0.5)
     qd = jnp.asarray(rng.normal(size=lk.n_dof))
-    ref = jax.jit(lambda q, qd: constraint_terms(lk, data, q, qd))(q, qd)
-    got = jax.jit(
-        lambda q, qd: constraint_terms_from_kinematics(
-            lk, *kinematics_and_rates(data, q, qd)
-        )
-    )(q, qd)
-    # The statics maps the multipliers as tip wrenches: A^T mu without forming A.
     mu = jnp.asarray(rng.normal(size=lk.n_constraints))
-    force = jax.jit(
-        lambda q, mu: (
-            equilibrium_residual(lk, data, q, mu=jnp.zeros_like(mu))
-            - equilibrium_residual(lk, data, q, mu=mu)
-        )
-    )(q, mu)
+
+    @jax.jit  # one program for the three (one compile per joint type)
+    def terms(q, qd, mu):
+        data = precompute(lk)
+        ref = constraint_terms(lk, data, q, qd)
+        got = constraint_terms_from_kinematics(lk, *kinematics_and_rates(data, q, qd))
+        # The statics maps the multipliers as tip wrenches: A^T mu without forming A.
+        force = equilibrium_residual(
+            lk, data, q, mu=jnp.zeros_like(mu)
+        ) - equilibrium_residual(lk, data, q, mu=mu)
+        return ref, got, force
+
+    ref, got, force = terms(q, qd, mu)
     ref, got = (*ref, ref[1].T @ mu), (*got, force)
     for name, a, b in zip(("e", "A", "Adot qd", "A^T mu"), ref, got, strict=True):
         scale = max(float(jnp.abs(a).max()), 1e-12)

@@ -112,6 +112,32 @@ def test_results_agree_with_xla_default_options(arm):
     np.testing.assert_allclose(e0, e1, rtol=1e-10, atol=1e-13)
 
 
+def test_results_agree_at_xla_default_optimisation_level(arm):
+    """The suite compiles with LLVM at -O0 (tests/conftest.py); users get XLA's
+    default level. Statics and 0.2 s of dynamics of the prescribed arm compiled at
+    level 2 (``xla_backend_optimization_level``, passed per program) equal the
+    suite's -O0 programs: the level changes machine code, not the arithmetic
+    (1e-12 relative; measured equal to rounding)."""
+
+    def run(th):
+        sol = sj.solve_statics(arm, u=jnp.stack([th]))
+        tr = sj.simulate(
+            arm,
+            0.2,
+            sol.q,
+            u=lambda t: jnp.stack([th + 0.2 * jnp.sin(3.0 * t)]),
+            n_save=3,
+            throw=False,
+        )
+        return sol.q, sol.efforts, tr.q, tr.qd
+
+    level2 = {**sj.compiler_options(), "xla_backend_optimization_level": 2}
+    at_default = jax.jit(run, compiler_options=level2)(jnp.asarray(0.5))
+    in_suite = jax.jit(run, compiler_options=sj.compiler_options())(jnp.asarray(0.5))
+    for a, b in zip(at_default, in_suite, strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-13)
+
+
 def test_dynamics_right_hand_side_is_traced_once(arm, monkeypatch):
     """diffrax evaluates the vector field at several places (term check, first
     stage, stage loop) and the efforts at the save points evaluate it again; sorojax

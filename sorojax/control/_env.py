@@ -24,6 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float, Int, PRNGKeyArray
 
+from .._jit import jit
 from .._results import RESULTS
 from ..dynamics._actuation import cable_lengths
 from ..integrate._simulate import (
@@ -214,6 +215,10 @@ class Environment(eqx.Module):
     def step(self, state: EnvState, action: ArrayLike) -> EnvState:
         """Integrate one control period under ``action``; never raises.
 
+        One compiled program per environment structure when called outside a
+        trace; inside your ``jit``, ``vmap``, ``grad`` or ``scan`` it is traced
+        into your program.
+
         Args:
             state: the current state.
             action: (n_inputs,) action (see :meth:`inputs`).
@@ -222,6 +227,9 @@ class Environment(eqx.Module):
             The state one period later; on failure the same state with
             ``result`` set (and ``t`` not advanced).
         """
+        return _compiled_step(self, state, action)
+
+    def _step(self, state: EnvState, action: ArrayLike) -> EnvState:
         u_fn, u1 = self.input_function(state, action)
         t1 = state.t + self.period
         if self.dt is not None:
@@ -300,8 +308,7 @@ class Environment(eqx.Module):
     def tip_velocity(self, state: EnvState, link: int = -1) -> Float[Array, " 3"]:
         """World linear velocity of link ``link``'s tip [m/s]."""
         point = self.linkage.tip_point(self.linkage.n_links if link == -1 else link)
-        g, J = poses_and_jacobians(precompute(self.linkage), state.q)  # one pass
-        return g[point, :3, :3] @ (J[point] @ state.qd)[3:]  # body twist -> world
+        return _tip_motion(self.linkage, state.q, state.qd, point)[1]
 
     def strains(self, state: EnvState) -> Float[Array, "n_points 6"]:
         """Screw strains at every significant point (angular first)."""
@@ -313,9 +320,22 @@ class Environment(eqx.Module):
 
     def observation(self, state: EnvState) -> Float[Array, " n_obs"]:
         """A flat observation: ``[q, qd, tip position, tip velocity]``."""
-        return jnp.concatenate(
-            [state.q, state.qd, self.tip_position(state), self.tip_velocity(state)]
-        )
+        point = self.linkage.tip_point(self.linkage.n_links)
+        x, v = _tip_motion(self.linkage, state.q, state.qd, point)
+        return jnp.concatenate([state.q, state.qd, x, v])
+
+
+@jit
+def _compiled_step(env: Environment, state: EnvState, action) -> EnvState:
+    return env._step(state, action)
+
+
+@jit
+def _tip_motion(linkage: Linkage, q, qd, point: int):
+    """World position and linear velocity of a significant point (one kinematics
+    pass: poses and Jacobians)."""
+    g, J = poses_and_jacobians(precompute(linkage), q)
+    return g[point, :3, 3], g[point, :3, :3] @ (J[point] @ qd)[3:]  # body -> world
 
 
 def _advanced(state, ok, q, qd, t1, u1, code, steps) -> EnvState:

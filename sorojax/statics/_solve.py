@@ -628,10 +628,14 @@ def solve_statics(
         ValueError: bad ``q0`` shape or ``load_steps`` < 1.
         RuntimeError: the solve failed and ``throw`` is True.
     """
+    # Defaults as arrays here, so that a call with and one without q0 or u share
+    # one compiled program (and bad shapes fail before anything compiles).
+    q0 = _as_q(linkage, jnp.zeros(linkage.n_dof) if q0 is None else q0, "q0")
+    u = as_inputs(linkage, None if u is None else jnp.asarray(u, float), q0.dtype)
     sol = _solve_statics(
         linkage,
         q0,
-        None if u is None else jnp.asarray(u, dtype=float),
+        u,
         t=jnp.asarray(t, dtype=float),
         solver=solver,
         load_steps=load_steps,
