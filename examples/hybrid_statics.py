@@ -4,8 +4,9 @@ The scene (``sorojax.scenes.demo_linkage``): a rigid bar on a sprung revolute jo
 (about z) carrying a two-division soft rod, gravity along -y, a 0.5 N follower force at
 the soft tip. Solves the equilibrium, prints the tip position, and takes the gradient
 of the tip height with respect to the joint stiffness and the rod's Young's modulus by
-the implicit function theorem (no finite differences). Writes a PNG of the
-configuration next to the reference shape.
+the implicit function theorem (no finite differences): one compiled program gives
+the equilibrium, its poses and the derivatives (``jax.grad`` with ``has_aux``).
+Writes a PNG of the configuration next to the reference shape.
 
 Run::
 
@@ -20,7 +21,9 @@ import jax
 jax.config.update("jax_enable_x64", True)
 
 import equinox as eqx  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
 import matplotlib  # noqa: E402
+import numpy as np  # noqa: E402
 
 matplotlib.use("Agg")
 
@@ -42,12 +45,11 @@ def main(argv=None):
         raise SystemExit(f"{path} exists; pass --overwrite to replace it")
 
     linkage = demo_linkage()
-    sol = sj.solve_statics(linkage)
-    tip = sj.tip_pose(linkage, sol.q)[:3, 3]
-    print(f"ndof {linkage.n_dof}, {int(sol.num_steps)} Newton iterations")
-    print(f"tip position [m]: {tip}")
+    tip = linkage.tip_point(linkage.n_links)
 
     def tip_height(params):
+        """Tip height at the equilibrium for (joint stiffness, E); as aux the
+        solution and the poses (equilibrium, reference) for the figure."""
         k, E = params
         lk = eqx.tree_at(
             lambda l: (l.links[0].joint.stiffness, l.links[1].material.E),
@@ -55,21 +57,31 @@ def main(argv=None):
             (k, E),
         )
         # throw=False: under jit, throw=True would add a host callback (the error
-        # check), which keeps the program out of the persistent cache; the solve at
-        # these parameters was checked above
-        return sj.tip_pose(lk, sj.solve_statics(lk, throw=False).q)[1, 3]
+        # check), which keeps the program out of the persistent cache; the result
+        # code is checked below
+        sol = sj.solve_statics(lk, throw=False)
+        g = sj.forward_kinematics(lk, sol.q)
+        g0 = sj.forward_kinematics(lk, jnp.zeros(lk.n_dof))
+        return g[tip, 1, 3], (sol, g, g0)
 
     k0 = linkage.links[0].joint.stiffness
     E0 = linkage.links[1].material.E
-    # our own top-level jit, with sorojax's XLA options (they apply to top-level
-    # programs only; a bare jax.grad would compile with XLA's defaults)
-    grad = jax.jit(jax.grad(tip_height), compiler_options=sj.compiler_options())
-    dk, dE = grad((k0, E0))
+    # One program gives the equilibrium, the poses and the derivatives (the
+    # implicit function theorem at the solution): our own top-level jit, with
+    # sorojax's XLA options (they apply to top-level programs only).
+    run = jax.jit(
+        jax.grad(tip_height, has_aux=True), compiler_options=sj.compiler_options()
+    )
+    (dk, dE), (sol, g, g0) = run((k0, E0))
+    if sol.result != sj.RESULTS.successful:
+        raise RuntimeError(f"statics failed: {sol.result}")
+    print(f"ndof {linkage.n_dof}, {int(sol.num_steps)} Newton iterations")
+    print(f"tip position [m]: {np.asarray(g[tip, :3, 3])}")
     print(f"d(tip y)/d(joint stiffness) = {float(dk.squeeze()):.4e} m per N m/rad")
     print(f"d(tip y)/d(E)               = {float(dE):.4e} m per Pa")
 
-    fig, ax = plot_reference(linkage, color="0.75", frames=False)
-    plot_configuration(linkage, sol.q, ax=ax)
+    fig, ax = plot_reference(linkage, color="0.75", frames=False, poses=g0)
+    plot_configuration(linkage, sol.q, ax=ax, poses=g)
     ax.set_title("hybrid scene: reference (grey) and equilibrium")
     fig.savefig(path, dpi=110)
     print(f"wrote {path}")
