@@ -48,8 +48,10 @@ def main(argv=None):
     tip = linkage.tip_point(linkage.n_links)
 
     def tip_height(params):
-        """Tip height at the equilibrium for (joint stiffness, E); as aux the
-        solution and the poses (equilibrium, reference) for the figure."""
+        """Tip height at the equilibrium for (joint stiffness, E).
+
+        As aux: the solution and the poses (equilibrium, reference) for the figure.
+        """
         k, E = params
         lk = eqx.tree_at(
             lambda l: (l.links[0].joint.stiffness, l.links[1].material.E),

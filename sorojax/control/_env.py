@@ -332,8 +332,10 @@ def _compiled_step(env: Environment, state: EnvState, action) -> EnvState:
 
 @jit
 def _tip_motion(linkage: Linkage, q, qd, point: int):
-    """World position and linear velocity of a significant point (one kinematics
-    pass: poses and Jacobians)."""
+    """World position and linear velocity of a significant point.
+
+    One kinematics pass (poses and Jacobians) gives both.
+    """
     g, J = poses_and_jacobians(precompute(linkage), q)
     return g[point, :3, 3], g[point, :3, :3] @ (J[point] @ qd)[3:]  # body -> world
 
