@@ -8,12 +8,20 @@ from sorojax._cli import main  # noqa: E402
 
 
 def test_demo_runs_and_writes_png(tmp_path, capsys):
-    out = tmp_path / "demo.png"
-    code = main(["demo", "-o", str(out)])
-    text = capsys.readouterr().out
-    assert code == 0, text
-    assert "ndof = 7" in text and "converged" in text and "tip position" in text
-    assert out.stat().st_size > 10_000, "PNG too small to hold a rendered figure"
+    """The demo (compiled at LLVM -O0) and ``--optimised`` (XLA's default level)
+    print the same equilibrium; each writes its PNG."""
+    texts = []
+    for flags in ([], ["--optimised"]):
+        out = tmp_path / f"demo{len(flags)}.png"
+        code = main(["demo", "-o", str(out), *flags])
+        text = capsys.readouterr().out
+        assert code == 0, text
+        assert "ndof = 7" in text and "converged" in text and "tip position" in text
+        assert out.stat().st_size > 10_000, "PNG too small to hold a rendered figure"
+        texts.append(text)
+    assert "LLVM -O0" in texts[0] and "default level" in texts[1]
+    pose = [t[t.index("  q = ") : t.index("  time:")] for t in texts]
+    assert pose[0] == pose[1], "the optimisation level changed the printed solution"
 
 
 def test_exported_demo_program_matches_the_code(tmp_path):
