@@ -227,7 +227,8 @@ class Environment(eqx.Module):
             The state one period later; on failure the same state with
             ``result`` set (and ``t`` not advanced).
         """
-        return _compiled_step(self, state, action)
+        # an array: a list or a Python float would be a static (retraced) argument
+        return _compiled_step(self, state, jnp.asarray(action, dtype=state.q.dtype))
 
     def _step(self, state: EnvState, action: ArrayLike) -> EnvState:
         u_fn, u1 = self.input_function(state, action)
