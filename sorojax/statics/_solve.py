@@ -365,8 +365,8 @@ def _newton(
 @jit
 def _solve_statics(
     linkage: Linkage,
-    q0: ArrayLike | None = None,
-    u: ArrayLike | None = None,
+    q0: Array,
+    u: Array,
     *,
     t: ArrayLike = 0.0,
     solver: optx.AbstractRootFinder | optx.AbstractLeastSquaresSolver | None = None,
@@ -379,6 +379,7 @@ def _solve_statics(
 ) -> StaticsSolution:
     """Jitted core of :func:`solve_statics`, which never throws.
 
+    ``q0`` ``(n_dof,)`` and ``u`` ``(n_inputs,)`` come checked from the wrapper.
     Without a host callback the compiled program can be kept in JAX's persistent
     compilation cache.
     """
@@ -387,8 +388,6 @@ def _solve_statics(
     if not isinstance(max_load_steps, int) or max_load_steps < 1:
         raise ValueError(f"max_load_steps = {max_load_steps!r}: give an integer >= 1.")
     n = linkage.n_dof
-    q0 = jnp.zeros(n) if q0 is None else _as_q(linkage, q0, "q0")
-    u = as_inputs(linkage, u, q0.dtype)
     qi, ui = linkage.prescribed
     free = free_coordinates(linkage)
     nf = len(free)
