@@ -50,8 +50,8 @@ _HEAVY_FIRST = (
     "test_actuation.py",  # 56
     "test_statics.py",  # 54
     "test_env.py",  # 53
-    "test_rosenbrock.py",  # 45
     "test_example_learn.py",  # 46
+    "test_rosenbrock.py",  # 45
     "test_integrate.py",  # 38
     "test_kinematics.py",  # 37
     "test_examples.py",  # 33

@@ -112,7 +112,7 @@ def test_results_agree_with_xla_default_options(arm):
     np.testing.assert_allclose(e0, e1, rtol=1e-10, atol=1e-13)
 
 
-def test_results_agree_at_xla_default_optimisation_level(arm):
+def test_results_agree_at_xla_default_optimisation_level(arm, jit_optimised):
     """The suite compiles with LLVM at -O0 (tests/conftest.py); users get XLA's
     default level. Statics and 0.2 s of dynamics of the prescribed arm compiled at
     level 2 (``xla_backend_optimization_level``, passed per program) equal the
@@ -131,8 +131,7 @@ def test_results_agree_at_xla_default_optimisation_level(arm):
         )
         return sol.q, sol.efforts, tr.q, tr.qd
 
-    level2 = {**sj.compiler_options(), "xla_backend_optimization_level": 2}
-    at_default = jax.jit(run, compiler_options=level2)(jnp.asarray(0.5))
+    at_default = jit_optimised(run)(jnp.asarray(0.5))  # conftest.py: level 2
     in_suite = jax.jit(run, compiler_options=sj.compiler_options())(jnp.asarray(0.5))
     for a, b in zip(at_default, in_suite, strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-13)
