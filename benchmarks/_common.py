@@ -10,6 +10,11 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 
+# Warm timings are of programs compiled at XLA's default level from their first call:
+# sorojax's default compile tiers would run a program's first calls at -O0 (see
+# sorojax.compile_mode). latency.py times the tiers on their own.
+os.environ.setdefault("SOROJAX_COMPILE", "full")
+
 
 def git_state():
     """HEAD commit and whether sorojax/ has uncommitted changes, or None without git."""

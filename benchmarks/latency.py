@@ -170,15 +170,77 @@ def child(name, repeats):
     )
 
 
+def child_tiered(name, repeats):
+    """The same target through ``sorojax.jit`` in the tiered compile mode.
+
+    One wall time for the first call (trace, lower, -O0 compile, run), then calls
+    until the program is compiled at XLA's default level (the call that compiles it
+    timed on its own), then the median of warm calls. Prints one JSON line.
+    """
+    import os
+
+    os.environ["SOROJAX_COMPILE"] = "tiered"
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    jax.config.update("jax_enable_compilation_cache", False)
+    import sorojax as sj
+
+    for public in sj.__all__:
+        getattr(sj, public)
+    f, args, n_dof = build(name)
+    jitted = sj.jit(f)
+    t = time.perf_counter()
+    jax.block_until_ready(jitted(*args))
+    first = time.perf_counter() - t
+    (program,) = jitted.programs.values()
+    slow, calls = [], 1
+    while program.full is None and calls < 10_000:
+        t = time.perf_counter()
+        jax.block_until_ready(jitted(*args))
+        slow.append(time.perf_counter() - t)
+        calls += 1
+    promoting = slow.pop() if program.full is not None else float("nan")
+    warm = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        jax.block_until_ready(jitted(*args))
+        warm.append(time.perf_counter() - t)
+    print(
+        json.dumps(
+            {
+                "target": name,
+                "n_dof": n_dof,
+                "mode": "tiered",
+                "first_call_total_s": first,
+                "fast_compile_s": program.budget,
+                "fast_calls_after_first": len(slow),
+                "fast_call_median_s": statistics.median(slow) if slow else None,
+                "promoting_call_s": promoting,
+                "warm_median_s": statistics.median(warm),
+            }
+        )
+    )
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--targets", nargs="*", default=list(TARGETS))
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--tag", default="")
+    ap.add_argument(
+        "--tiered",
+        action="store_true",
+        help="also time each target through sorojax.jit in the tiered compile mode",
+    )
     ap.add_argument("--child", default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--child-tiered", default=None, help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.child:
         child(a.child, a.repeats)
+        return
+    if a.child_tiered:
+        child_tiered(a.child_tiered, a.repeats)
         return
     sys.path.insert(0, str(pathlib.Path(__file__).parent))
     import jax
@@ -207,6 +269,25 @@ def main(argv=None):
             f"{r['compile_s']:7.2f}s {r['first_run_s']:7.3f}s "
             f"{r['first_call_total_s']:6.2f}s {1e3 * r['warm_median_s']:7.2f}ms "
             f"{r['hlo_lines']:7d}  result {r['result']}",
+            flush=True,
+        )
+        if not a.tiered:
+            continue
+        out = subprocess.run(
+            [sys.executable, __file__, "--child-tiered", name, "--repeats", "5"],
+            capture_output=True,
+            text=True,
+        )
+        if out.returncode:
+            print(f"{name} (tiered): failed\n{out.stderr[-2000:]}", flush=True)
+            continue
+        r = json.loads(out.stdout.strip().splitlines()[-1])
+        rows.append(r)
+        print(
+            f"{'  tiered':16s} first call {r['first_call_total_s']:.2f}s (-O0 compile "
+            f"{r['fast_compile_s']:.2f}s), {r['fast_calls_after_first']} more -O0 "
+            f"calls, then {r['promoting_call_s']:.2f}s to compile at the default "
+            f"level; warm {1e3 * r['warm_median_s']:.2f}ms",
             flush=True,
         )
     RESULTS_DIR.mkdir(exist_ok=True)

@@ -28,6 +28,9 @@ import pathlib
 import subprocess
 import time
 
+# warm timings at XLA's default level from the first call (sorojax.compile_mode)
+os.environ.setdefault("SOROJAX_COMPILE", "full")
+
 import jax
 import jax.numpy as jnp
 import numpy as np

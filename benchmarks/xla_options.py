@@ -25,6 +25,9 @@ import pathlib
 import statistics
 import time
 
+# warm timings at XLA's default level from the first call (sorojax.compile_mode)
+os.environ.setdefault("SOROJAX_COMPILE", "full")
+
 import jax
 
 jax.config.update("jax_enable_x64", True)

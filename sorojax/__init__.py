@@ -22,6 +22,8 @@ __version__ = "0.1.0"
 _LAZY = {
     "enable_compilation_cache": "._cache",
     "compiler_options": "._jit",
+    "compile_mode": "._jit",
+    "jit": "._jit",
     "RESULTS": "._results",
     "StaticsSolution": "._results",
     "sweep": "._sweep",
@@ -130,7 +132,9 @@ def __dir__():
 
 if TYPE_CHECKING:  # static analysers see the names as plain imports
     from ._cache import enable_compilation_cache as enable_compilation_cache
+    from ._jit import compile_mode as compile_mode
     from ._jit import compiler_options as compiler_options
+    from ._jit import jit as jit
     from ._results import RESULTS as RESULTS
     from ._results import StaticsSolution as StaticsSolution
     from ._sweep import sweep as sweep

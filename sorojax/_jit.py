@@ -13,16 +13,28 @@ defaults. JAX takes compiler options on top-level jits only: a sorojax call insi
 your own ``jax.jit``, ``grad`` or ``vmap`` is compiled with the outer program's
 options; pass ``compiler_options=sorojax.compiler_options()`` to your top-level
 ``jax.jit`` to get these.
+
+Compile tiers (``SOROJAX_COMPILE``, :func:`compile_mode`): XLA's LLVM code generation
+is most of a first call's time, and at -O0 it takes about half as long; the code then
+runs 3-7x slower (`benchmarks/latency.py`). So by default a top-level sorojax program
+is first compiled at -O0 and compiled again at XLA's default level only once its
+calls have run for as long as that first compile took ("ski rental": a program
+called once or a few times pays half the compile; a hot one at most one extra -O0
+compile and as much time again in slow calls). The two tiers compute the same HLO
+program; results agree to rounding (~1e-15 relative), not bit for bit: set
+``SOROJAX_COMPILE=full`` for bit-for-bit repeatable runs.
 """
 
 import functools
 import os
+import time
 from collections.abc import Callable
 from typing import Any
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 CPU_OPTIONS: dict[str, Any] = {"xla_cpu_use_fusion_emitters": False}
 
@@ -64,20 +76,97 @@ def _top_level() -> bool:
     return _trace_state_clean is not None and _trace_state_clean()
 
 
-def jit(fun: Callable) -> Callable:
-    """``eqx.filter_jit(fun)``, compiled with :func:`compiler_options` at top level.
+MODES = ("tiered", "full", "fast")
+FAST_OPTIONS: dict[str, Any] = {"xla_backend_optimization_level": 0}
 
-    Called inside another trace (your ``jit``, ``grad``, ``vmap``), the function is
-    the plain ``eqx.filter_jit(fun)``: JAX takes compiler options on top-level jits
-    only, and there the outer program's options apply. The options are probed on the
-    first top-level call (not at import, which must not start a JAX backend).
+
+def compile_mode() -> str:
+    """How sorojax compiles top-level programs: ``$SOROJAX_COMPILE``, else ``"tiered"``.
+
+    * ``"tiered"``: the first call of a program (one per argument structure and
+      shape, as ``jax.jit``) compiles it with LLVM at -O0; once its calls have run
+      for as long as that compile took, it is compiled at XLA's default level, which
+      later calls use. Programs that run long by design (``simulate``'s
+      integration) start at the default level.
+    * ``"full"``: XLA's default level from the first call (warm timings, bit-for-bit
+      repeatable results).
+    * ``"fast"``: -O0 for good (short scripts, test suites).
+
+    Tiers apply on CPU with sorojax's XLA options in effect (elsewhere every mode
+    is ``"full"``) and to top-level calls only: inside your ``jit``/``grad``/``vmap``
+    your program's options apply (wrap it in :func:`jit` to tier it too).
+    """
+    mode = os.environ.get("SOROJAX_COMPILE", "").strip().lower() or "tiered"
+    if mode not in MODES:
+        raise ValueError(
+            f"SOROJAX_COMPILE={mode!r} is not a compile mode; use one of {MODES} "
+            "(or unset it: tiered)."
+        )
+    return mode
+
+
+def _signature(args, kwargs) -> tuple:
+    """The key ``eqx.filter_jit`` compiles one program per.
+
+    The tree structure, each array's shape and dtype, every other leaf by value
+    (filter_jit makes those static).
+    """
+    leaves, treedef = jax.tree_util.tree_flatten((args, kwargs))
+    key: list = [treedef]
+    for x in leaves:
+        if isinstance(x, jax.Array):
+            key.append((x.shape, x.dtype, x.weak_type))
+        elif isinstance(x, np.ndarray | np.generic):
+            key.append((x.shape, x.dtype))
+        else:
+            key.append(x)
+    return tuple(key)
+
+
+class _TieredProgram:
+    """One program of a tiered function: -O0 first, XLA's default level once hot."""
+
+    __slots__ = ("lowered", "fast", "full", "budget", "spent")
+
+    def __init__(self, lowered, options: dict[str, Any]):
+        self.lowered = lowered  # traced and lowered once for both tiers
+        start = time.perf_counter()
+        self.fast = lowered.compile({**options, **FAST_OPTIONS})
+        self.budget = time.perf_counter() - start
+        self.spent = 0.0
+        self.full = None
+
+    def __call__(self, options, promote, args, kwargs):
+        if self.full is not None:
+            return self.full(*args, **kwargs)
+        if promote and self.spent >= self.budget:
+            self.full = self.lowered.compile(options)
+            self.lowered = None
+            return self.full(*args, **kwargs)
+        start = time.perf_counter()
+        out = jax.block_until_ready(self.fast(*args, **kwargs))
+        self.spent += time.perf_counter() - start
+        return out
+
+
+def jit(fun: Callable, *, tiered: bool = True) -> Callable:
+    """``eqx.filter_jit(fun)`` compiled as sorojax compiles its own programs.
+
+    At top level: with :func:`compiler_options` and in the tiers of
+    :func:`compile_mode` (``tiered=False``: at XLA's default level in the tiered
+    mode, for programs whose first call runs long, e.g. a whole simulation). Inside
+    another trace (a ``jit``, ``grad``, ``vmap``) it is the plain
+    ``eqx.filter_jit(fun)``: JAX takes compiler options on top-level jits only. The
+    options are probed on the first top-level call (not at import, which must not
+    start a JAX backend). Use it for your own programs around sorojax calls::
+
+        tips = sorojax.jit(lambda loads: jax.vmap(tip_of)(loads))
     """
     plain = eqx.filter_jit(fun)
     tuned: list = []
+    programs: dict = {}
 
-    def pick():
-        if not _top_level():
-            return plain
+    def full():
         if not tuned:
             opts = _probed_options()
             tuned.append(eqx.filter_jit(fun, compiler_options=opts) if opts else plain)
@@ -85,8 +174,27 @@ def jit(fun: Callable) -> Callable:
 
     @functools.wraps(fun)
     def call(*args, **kwargs):
-        return pick()(*args, **kwargs)
+        if not _top_level():
+            return plain(*args, **kwargs)
+        mode = compile_mode()
+        if mode == "full" or (mode == "tiered" and not tiered) or not _tiers_apply():
+            return full()(*args, **kwargs)
+        key = _signature(args, kwargs)
+        program = programs.get(key)
+        options = _probed_options()
+        if program is None:
+            program = programs[key] = _TieredProgram(
+                plain.lower(*args, **kwargs), options
+            )
+        return program(options, mode == "tiered", args, kwargs)
 
+    call.programs = programs  # the tiered programs, by signature (for inspection)
     # ahead-of-time compilation, as on a filter_jit: f.lower(*args).compile()
-    call.lower = lambda *args, **kwargs: pick().lower(*args, **kwargs)
+    call.lower = lambda *a, **kw: (full() if _top_level() else plain).lower(*a, **kw)
     return call
+
+
+@functools.cache
+def _tiers_apply() -> bool:
+    """-O0 means LLVM's CPU code generation: tiers on CPU with sorojax's options."""
+    return bool(_probed_options()) and jax.default_backend() == "cpu"

@@ -17,11 +17,14 @@ import pathlib
 # about half the time and run 2-6x slower, which a compile-bound suite gains from
 # (empty-cache run 540 -> 381 s on 2 cores). tests/test_jit.py checks that programs
 # compiled at XLA's default level give the same results. SOROJAX_TEST_XLA_OPT=default
-# keeps XLA's default level.
+# keeps XLA's default level (and sorojax's default compile tiers). With every program
+# at -O0 already, sorojax's tiers would only compile a hot program a second time at
+# the same level: SOROJAX_COMPILE=full (tests/test_jit.py tests the tiers).
 if os.environ.get("SOROJAX_TEST_XLA_OPT", "0") != "default":
     os.environ["XLA_FLAGS"] = " ".join(
         [os.environ.get("XLA_FLAGS", ""), "--xla_backend_optimization_level=0"]
     ).strip()
+    os.environ["SOROJAX_COMPILE"] = "full"
 
 import jax  # noqa: E402
 import pytest

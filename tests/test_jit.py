@@ -158,3 +158,89 @@ def test_dynamics_right_hand_side_is_traced_once(arm, monkeypatch):
     # it once more; before sharing the trace it was 5 (check, first stage, stage
     # loop twice, save points)
     assert 1 <= len(calls) <= 2, f"constrained dynamics traced {len(calls)} times"
+
+
+def test_compile_mode_reads_the_environment(monkeypatch):
+    """``SOROJAX_COMPILE`` picks the tiers; unset or empty is "tiered"; anything else
+    is an error that names the variable, the value and the choices."""
+    monkeypatch.delenv("SOROJAX_COMPILE", raising=False)
+    assert sj.compile_mode() == "tiered"
+    for mode in sjit.MODES:
+        monkeypatch.setenv("SOROJAX_COMPILE", f" {mode.upper()} ")
+        assert sj.compile_mode() == mode
+    monkeypatch.setenv("SOROJAX_COMPILE", "O3")
+    with pytest.raises(ValueError, match=r"SOROJAX_COMPILE='o3'.*tiered.*full.*fast"):
+        sj.compile_mode()
+
+
+@pytest.fixture
+def tiered(monkeypatch):
+    """The tiered compile mode (the suite runs "full": every program is at -O0)."""
+    if not sjit._tiers_apply():
+        pytest.skip("compile tiers apply on CPU with sorojax's XLA options")
+    monkeypatch.setenv("SOROJAX_COMPILE", "tiered")
+    compiles = []
+    real = sjit.eqx._compile_utils.Lowered.compile
+
+    def spy(self, compiler_options=None):
+        compiles.append(dict(compiler_options or {}))
+        return real(self, compiler_options)
+
+    monkeypatch.setattr(sjit.eqx._compile_utils.Lowered, "compile", spy)
+    return compiles
+
+
+def test_tiered_program_starts_at_O0_and_is_compiled_again_once_hot(tiered):
+    """First call: one trace, compiled with ``xla_backend_optimization_level = 0``.
+    The program is recompiled at the default level (sorojax's options without the
+    -O0 entry) only once its calls have run for as long as its first compile took
+    (the budget; set to zero here to trigger it); from then on the -O0 program is
+    not used. Same function, same values at both tiers."""
+    f = sjit.jit(lambda x, n: jnp.cumsum(jnp.sin(x) * n))
+    x = jnp.linspace(0.0, 1.0, 5)
+    first = f(x, 2)
+    assert tiered == [{**sj.compiler_options(), **sjit.FAST_OPTIONS}]
+    (program,) = f.programs.values()
+    assert program.full is None and program.budget > 0.0 and program.spent > 0.0
+    program.budget = program.spent  # as if its calls had run as long as the compile
+    second = f(x, 2)
+    assert tiered[1:] == [sj.compiler_options()]
+    assert program.full is not None and program.lowered is None
+    np.testing.assert_allclose(first, second, rtol=1e-15)  # both -O0 in this suite
+    f(x + 1.0, 2)  # new values: the same (promoted) program, no compile
+    assert len(tiered) == 2 and len(f.programs) == 1
+    # a new shape, a new static value: a program each, each at -O0 first
+    f(jnp.zeros(3), 2)
+    f(x, 3)
+    assert len(f.programs) == 3 and tiered[2:] == 2 * [tiered[0]]
+
+
+def test_tiered_programs_calls_below_the_budget_stay_at_O0(tiered):
+    """Ski rental: calls whose run time adds up to less than the -O0 compile keep the
+    -O0 program (no second compile); the time they ran is what is counted."""
+    f = sjit.jit(lambda x: x @ x.T)
+    x = jnp.ones((4, 4))
+    f(x)
+    (program,) = f.programs.values()
+    program.budget = 1e9  # a compile "longer" than any number of these calls
+    for _ in range(20):
+        f(x)
+    assert len(tiered) == 1 and program.full is None
+    assert 0.0 < program.spent < 60.0
+
+
+def test_tiered_mode_applies_to_top_level_calls_of_sorojax_functions(tiered, arm):
+    """``solve_statics`` at top level is a tiered program; inside a user's ``jit``
+    it is traced into the user's program (no tier, no compile of its own);
+    ``simulate``'s integration starts at the default level (``tiered=False``: its
+    first call may run long)."""
+    from sorojax.statics._solve import _solve_statics
+
+    sol = sj.solve_statics(arm, u=jnp.array([0.5]))
+    n_programs = len(_solve_statics.programs)
+    assert n_programs >= 1, "solve_statics made no tiered program"
+    q = jax.jit(lambda th: sj.solve_statics(arm, u=jnp.stack([th])).q)(0.5)
+    np.testing.assert_allclose(q, sol.q, rtol=1e-12, atol=1e-14)
+    assert len(_solve_statics.programs) == n_programs
+    sj.simulate(arm, 0.05, sol.q, u=jnp.array([0.5]), n_save=2)
+    assert not simulate_module._simulate.programs

@@ -16,6 +16,7 @@ failed result code rather than an error naming them.
 """
 
 import contextlib
+import functools
 from collections.abc import Callable
 
 import diffrax
@@ -289,7 +290,7 @@ def _errors_as_nans():
         _errors.EQX_ON_ERROR = old
 
 
-@jit
+@functools.partial(jit, tiered=False)
 def _simulate(
     linkage: Linkage,
     y0: Array,
