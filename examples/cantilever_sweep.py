@@ -64,16 +64,16 @@ def main(argv=None):
 
     alpha = np.linspace(0.5, 10.0, args.n)
     P = jnp.asarray(alpha * EI / L**2)
-    opts = sj.compiler_options()  # sorojax's XLA options for our own top-level jits
-
     def y_and_tip(p):
         t = tip(p)
         return t[1], t
 
     # One program for the tips and their derivatives (the gradient program holds
-    # the forward solve anyway: a separate forward program was a second compile).
+    # the forward solve anyway: a separate forward program was a second compile),
+    # compiled as sorojax compiles its own: sorojax.jit (run once, so at -O0 in
+    # the default compile tiers: half the compile; see sorojax.compile_mode).
     dy_and_xy = jax.vmap(jax.grad(y_and_tip, has_aux=True))
-    dy, xy = jax.jit(dy_and_xy, compiler_options=opts)(P)
+    dy, xy = sj.jit(dy_and_xy)(P)
     dy, xy = np.asarray(dy), np.asarray(xy)
     print(f"{args.n} solves; tip y / L from {xy[0, 1]:.4f} to {xy[-1, 1]:.4f}")
     print(f"d(tip y)/dP from {dy[0]:.4e} to {dy[-1]:.4e} m/N (stiffening)")

@@ -69,11 +69,9 @@ def main(argv=None):
     k0 = linkage.links[0].joint.stiffness
     E0 = linkage.links[1].material.E
     # One program gives the equilibrium, the poses and the derivatives (the
-    # implicit function theorem at the solution): our own top-level jit, with
-    # sorojax's XLA options (they apply to top-level programs only).
-    run = jax.jit(
-        jax.grad(tip_height, has_aux=True), compiler_options=sj.compiler_options()
-    )
+    # implicit function theorem at the solution), compiled as sorojax compiles its
+    # own: sorojax.jit (XLA options and compile tiers; run once, so at -O0).
+    run = sj.jit(jax.grad(tip_height, has_aux=True))
     (dk, dE), (sol, g, g0) = run((k0, E0))
     if sol.result != sj.RESULTS.successful:
         raise RuntimeError(f"statics failed: {sol.result}")
