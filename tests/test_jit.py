@@ -244,3 +244,25 @@ def test_tiered_mode_applies_to_top_level_calls_of_sorojax_functions(tiered, arm
     assert len(_solve_statics.programs) == n_programs
     sj.simulate(arm, 0.05, sol.q, u=jnp.array([0.5]), n_save=2)
     assert not simulate_module._simulate.programs
+
+
+def test_top_level_simulate_computes_efforts_in_a_program_of_their_own(arm):
+    """At top level the inputs, prescribed efforts and multipliers at the save
+    points come from a program of their own (``_saved_inputs``: the integration's
+    program compiles without that copy of the right-hand side); inside a user's
+    ``jit`` they are part of the one program. Both give the same values (1e-12
+    relative: same arithmetic, separately compiled)."""
+    u = lambda t: jnp.stack([0.4 + 0.3 * jnp.sin(2.0 * t)])  # noqa: E731
+
+    def run(s):  # a named solver: "auto" decides from the structure under a jit
+        q0 = s * jnp.ones(arm.n_dof)
+        return sj.simulate(arm, 0.1, q0, u=u, n_save=4, solver="tsit5")
+
+    top = run(0.01)
+    inside = jax.jit(run)(0.01)
+    assert top.efforts.shape == (4, 1) and top.u.shape == (4, 1)
+    for field in ("q", "qd", "u", "efforts"):
+        np.testing.assert_allclose(
+            getattr(top, field), getattr(inside, field), rtol=1e-12, atol=1e-13
+        )
+    np.testing.assert_allclose(top.u[:, 0], u(top.t)[0], rtol=1e-14)

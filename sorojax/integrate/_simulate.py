@@ -27,7 +27,7 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, ArrayLike
 
-from .._jit import jit
+from .._jit import _top_level, jit
 from .._results import RESULTS
 from ..dynamics._eom import (
     GeneralizedForce,
@@ -306,6 +306,7 @@ def _simulate(
     adjoint: diffrax.AbstractAdjoint,
     u_fn,
     u_const: Array,
+    inputs_inline: bool,
 ) -> Trajectory:
     data = precompute(linkage)
     y0 = consistent_start(linkage, data, t0, y0, u_fn, u_const)
@@ -327,16 +328,11 @@ def _simulate(
     n = y0.shape[0] // 2
     assert sol.ys is not None and sol.ts is not None and sol.stats is not None
     extra = {}
-    if _needs_inputs(linkage):
-        # lax.map: one copy of the right-hand side in the program, as in the loop
-        # (a vmapped copy compiles ~20% slower; the save points are few).
-        st = jax.lax.map(
-            lambda ty: _rates(
-                linkage, data, ty[0], ty[1], u_fn, u_const, generalized_force
-            )[2],
-            (sol.ts, sol.ys),
+    if inputs_inline and _needs_inputs(linkage):
+        u, efforts, lam = _inputs_at(
+            linkage, data, sol.ts, sol.ys, u_fn, u_const, generalized_force
         )
-        extra = {"u": st.u, "efforts": st.efforts, "lam": st.lam}
+        extra = {"u": u, "efforts": efforts, "lam": lam}
     return Trajectory(
         solver=type(solver).__name__,
         t=sol.ts,
@@ -347,6 +343,33 @@ def _simulate(
         num_accepted_steps=sol.stats["num_accepted_steps"],
         num_rejected_steps=sol.stats["num_rejected_steps"],
         **extra,
+    )
+
+
+def _inputs_at(linkage, data, ts, ys, u_fn, u_const, generalized_force):
+    """Inputs, prescribed efforts and loop multipliers at the save points."""
+    # lax.map: one copy of the right-hand side in the program (a vmapped copy
+    # compiles ~20% slower; the save points are few).
+    st = jax.lax.map(
+        lambda ty: _rates(
+            linkage, data, ty[0], ty[1], u_fn, u_const, generalized_force
+        )[2],
+        (ts, ys),
+    )
+    return st.u, st.efforts, st.lam
+
+
+@jit
+def _saved_inputs(linkage, ts, ys, u_fn, u_const, generalized_force):
+    """:func:`_inputs_at` as a program of its own, for top-level ``simulate`` calls.
+
+    It holds a copy of the right-hand side: inside the integration's program it
+    added ~1.5 s to that program's compile at XLA's default level (the manual
+    hybrid's dynamics 2.6 -> 4.1 s), where this program is compiled in sorojax's
+    tiers (at -O0 first: it runs once per trajectory).
+    """
+    return _inputs_at(
+        linkage, precompute(linkage), ts, ys, u_fn, u_const, generalized_force
     )
 
 
@@ -468,6 +491,9 @@ def simulate(
     dt0_ = None if dt0 is None else jnp.asarray(dt0, dtype=dtype)
     meter = diffrax.TqdmProgressMeter() if progress else diffrax.NoProgressMeter()
     adjoint = diffrax.RecursiveCheckpointAdjoint() if adjoint is None else adjoint
+    # at top level the efforts at the save points are a program of their own (see
+    # _saved_inputs); inside a trace they are part of the caller's program
+    inline = not _top_level()
     with _errors_as_nans():
         traj = _simulate(
             linkage,
@@ -484,7 +510,19 @@ def simulate(
             adjoint,
             u_fn,
             u_const,
+            inline,
         )
+        if not inline and _needs_inputs(linkage):
+            ys = jnp.concatenate([traj.q, traj.qd], axis=1)
+            inputs = _saved_inputs(
+                linkage, traj.t, ys, u_fn, u_const, generalized_force
+            )
+            traj = eqx.tree_at(
+                lambda tr: (tr.u, tr.efforts, tr.lam),
+                traj,
+                inputs,
+                is_leaf=lambda x: x is None,
+            )
     if not throw:
         return traj
     failed = traj.result != RESULTS.successful
