@@ -64,6 +64,7 @@ def main(argv=None):
 
     alpha = np.linspace(0.5, 10.0, args.n)
     P = jnp.asarray(alpha * EI / L**2)
+
     def y_and_tip(p):
         t = tip(p)
         return t[1], t
