@@ -208,6 +208,7 @@ def test_tiered_program_starts_at_O0_and_is_compiled_again_once_hot(tiered):
     assert program.full is not None and program.lowered is None
     np.testing.assert_allclose(first, second, rtol=1e-15)  # both -O0 in this suite
     f(x + 1.0, 2)  # new values: the same (promoted) program, no compile
+    f(np.asarray(x), 2)  # a NumPy array is the same argument type to JAX
     assert len(tiered) == 2 and len(f.programs) == 1
     # a new shape, a new static value: a program each, each at -O0 first
     f(jnp.zeros(3), 2)
