@@ -247,12 +247,13 @@ def test_tiered_mode_applies_to_top_level_calls_of_sorojax_functions(tiered, arm
     assert not simulate_module._simulate.programs
 
 
-def test_top_level_simulate_computes_efforts_in_a_program_of_their_own(arm):
-    """At top level the inputs, prescribed efforts and multipliers at the save
-    points come from a program of their own (``_saved_inputs``: the integration's
-    program compiles without that copy of the right-hand side); inside a user's
-    ``jit`` they are part of the one program. Both give the same values (1e-12
-    relative: same arithmetic, separately compiled)."""
+def test_top_level_simulate_computes_efforts_in_a_program_of_their_own(tiered, arm):
+    """In the compile tiers, at top level, the inputs, prescribed efforts and
+    multipliers at the save points come from a program of their own
+    (``_saved_inputs``, at -O0: the integration's program compiles without that
+    copy of the right-hand side); inside a user's ``jit`` they are part of the one
+    program. Both give the same values (1e-12 relative: same arithmetic, separately
+    compiled)."""
     u = lambda t: jnp.stack([0.4 + 0.3 * jnp.sin(2.0 * t)])  # noqa: E731
 
     def run(s):  # a named solver: "auto" decides from the structure under a jit
@@ -260,6 +261,7 @@ def test_top_level_simulate_computes_efforts_in_a_program_of_their_own(arm):
         return sj.simulate(arm, 0.1, q0, u=u, n_save=4, solver="tsit5")
 
     top = run(0.01)
+    assert simulate_module._saved_inputs.programs  # the efforts' own program
     inside = jax.jit(run)(0.01)
     assert top.efforts.shape == (4, 1) and top.u.shape == (4, 1)
     for field in ("q", "qd", "u", "efforts"):

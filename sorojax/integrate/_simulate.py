@@ -27,7 +27,7 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, ArrayLike
 
-from .._jit import _top_level, jit
+from .._jit import _tiers_apply, _top_level, compile_mode, jit
 from .._results import RESULTS
 from ..dynamics._eom import (
     GeneralizedForce,
@@ -365,8 +365,9 @@ def _saved_inputs(linkage, ts, ys, u_fn, u_const, generalized_force):
 
     It holds a copy of the right-hand side: inside the integration's program it
     added ~1.5 s to that program's compile at XLA's default level (the manual
-    hybrid's dynamics 2.6 -> 4.1 s), where this program is compiled in sorojax's
-    tiers (at -O0 first: it runs once per trajectory).
+    hybrid's dynamics 2.6 -> 4.1 s), where on its own it is compiled in sorojax's
+    tiers (at -O0: 0.9 s; it runs once per trajectory). With every program at the
+    default level (``SOROJAX_COMPILE=full``) it stays inside.
     """
     return _inputs_at(
         linkage, precompute(linkage), ts, ys, u_fn, u_const, generalized_force
@@ -491,9 +492,11 @@ def simulate(
     dt0_ = None if dt0 is None else jnp.asarray(dt0, dtype=dtype)
     meter = diffrax.TqdmProgressMeter() if progress else diffrax.NoProgressMeter()
     adjoint = diffrax.RecursiveCheckpointAdjoint() if adjoint is None else adjoint
-    # at top level the efforts at the save points are a program of their own (see
-    # _saved_inputs); inside a trace they are part of the caller's program
-    inline = not _top_level()
+    # In the compile tiers the efforts at the save points are a program of their
+    # own, compiled at -O0 (see _saved_inputs); compiled at the default level they
+    # cost about as much inside the integration's program as apart, and inside a
+    # trace they are part of the caller's program.
+    inline = not (_top_level() and compile_mode() != "full" and _tiers_apply())
     with _errors_as_nans():
         traj = _simulate(
             linkage,
