@@ -112,6 +112,15 @@ def solve(linkage, repeats=5):
     return tip_displacement(linkage, sol.q), sol.q, first, median
 
 
+def tier():
+    """How the warm calls were compiled (see ``sorojax.compile_mode``).
+
+    In the default compile tiers a program called a few times stays at LLVM -O0
+    (3-5x slower than at XLA's default level).
+    """
+    return "" if sj.compile_mode() == "full" else " (-O0 tier)"
+
+
 def converge(torsion, tol=1e-5, min_order=3, max_order=8):
     """Raise the order until the tip displacement changes by < ``tol`` (relative)."""
     prev = None
@@ -122,7 +131,7 @@ def converge(torsion, tol=1e-5, min_order=3, max_order=8):
         print(
             f"  {torsion:12s} order {order}: {lk.n_dof} DoF, tip displacement "
             f"{np.array2string(u, precision=4)}, change {change:.1e}; first call "
-            f"{first:.1f} s, warm {1e3 * warm:.1f} ms"
+            f"{first:.1f} s, warm {1e3 * warm:.1f} ms{tier()}"
         )
         if change < tol:
             break
@@ -161,6 +170,7 @@ def main(argv=None):
             f"|published| = {100 * relative_error(r['u'], PUBLISHED):.2f} % (Bathe "
             f"& Bolourchi), {100 * relative_error(r['u'], PUBLISHED_SVQ):.2f} % (Simo "
             f"& Vu-Quoc); first call {r['first']:.1f} s, warm {1e3 * r['warm']:.1f} ms"
+            f"{tier()}"
         )
     du = results["polar"]["u"] - results["saint-venant"]["u"]
     size = float(np.linalg.norm(results["polar"]["u"]))

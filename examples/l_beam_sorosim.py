@@ -182,6 +182,15 @@ def timed_solve(linkage, repeats=5):
     return sol, first, statistics.median(warm)
 
 
+def tier():
+    """How the warm calls were compiled (see ``sorojax.compile_mode``).
+
+    In the default compile tiers a program called a few times stays at LLVM -O0
+    (3-5x slower than at XLA's default level).
+    """
+    return "" if sj.compile_mode() == "full" else " (-O0 tier)"
+
+
 def converge(mechanics, tol=1e-4, max_angular=6):
     """Raise the orders from SoRoSim's until the max deflection changes < ``tol``."""
     rows, prev = [], None
@@ -205,7 +214,7 @@ def converge(mechanics, tol=1e-4, max_angular=6):
         print(
             f"  {mechanics:8s} orders {orders}: {linkage.n_dof:3d} DoF, max deflection "
             f"{100 * dmax:.4f} cm, change {change:.1e}; first call {first:.1f} s, "
-            f"warm {1e3 * warm:.1f} ms"
+            f"warm {1e3 * warm:.1f} ms{tier()}"
         )
         if change < tol:
             break
