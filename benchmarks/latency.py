@@ -23,7 +23,11 @@ Targets (issue 19's list):
 Run::
 
     .venv/bin/python benchmarks/latency.py [--targets ...] [--repeats 5] [--tag before]
+        [--tiered]
 
+``--tiered`` also times each target through ``sorojax.jit`` in the default compile
+tiers (a second fresh process: the first call at -O0, the calls until the program
+is compiled again at XLA's default level, then warm calls; ``sorojax.compile_mode``).
 Writes ``benchmarks/results/latency<tag>.json`` and prints a table.
 """
 
@@ -223,6 +227,19 @@ def child_tiered(name, repeats):
     )
 
 
+def run_child(flag, name, repeats):
+    """One target in a fresh process (``flag``: --child or --child-tiered): its row."""
+    out = subprocess.run(
+        [sys.executable, __file__, flag, name, "--repeats", str(repeats)],
+        capture_output=True,
+        text=True,
+    )
+    if out.returncode:
+        print(f"{name} ({flag}): failed\n{out.stderr[-2000:]}", flush=True)
+        return None
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--targets", nargs="*", default=list(TARGETS))
@@ -254,15 +271,9 @@ def main(argv=None):
         flush=True,
     )
     for name in a.targets:
-        out = subprocess.run(
-            [sys.executable, __file__, "--child", name, "--repeats", str(a.repeats)],
-            capture_output=True,
-            text=True,
-        )
-        if out.returncode:
-            print(f"{name}: failed\n{out.stderr[-2000:]}", flush=True)
+        r = run_child("--child", name, a.repeats)
+        if r is None:
             continue
-        r = json.loads(out.stdout.strip().splitlines()[-1])
         rows.append(r)
         print(
             f"{name:16s} {r['n_dof']:4d} {r['trace_s']:6.2f}s {r['lower_s']:6.2f}s "
@@ -271,17 +282,9 @@ def main(argv=None):
             f"{r['hlo_lines']:7d}  result {r['result']}",
             flush=True,
         )
-        if not a.tiered:
+        r = run_child("--child-tiered", name, a.repeats) if a.tiered else None
+        if r is None:
             continue
-        out = subprocess.run(
-            [sys.executable, __file__, "--child-tiered", name, "--repeats", "5"],
-            capture_output=True,
-            text=True,
-        )
-        if out.returncode:
-            print(f"{name} (tiered): failed\n{out.stderr[-2000:]}", flush=True)
-            continue
-        r = json.loads(out.stdout.strip().splitlines()[-1])
         rows.append(r)
         print(
             f"{'  tiered':16s} first call {r['first_call_total_s']:.2f}s (-O0 compile "

@@ -232,9 +232,7 @@ def test_tiered_programs_calls_below_the_budget_stay_at_O0(tiered):
 
 def test_tiered_mode_applies_to_top_level_calls_of_sorojax_functions(tiered, arm):
     """``solve_statics`` at top level is a tiered program; inside a user's ``jit``
-    it is traced into the user's program (no tier, no compile of its own);
-    ``simulate``'s integration starts at the default level (``tiered=False``: its
-    first call may run long)."""
+    it is traced into the user's program (no tier, no compile of its own)."""
     from sorojax.statics._solve import _solve_statics
 
     sol = sj.solve_statics(arm, u=jnp.array([0.5]))
@@ -243,8 +241,6 @@ def test_tiered_mode_applies_to_top_level_calls_of_sorojax_functions(tiered, arm
     q = jax.jit(lambda th: sj.solve_statics(arm, u=jnp.stack([th])).q)(0.5)
     np.testing.assert_allclose(q, sol.q, rtol=1e-12, atol=1e-14)
     assert len(_solve_statics.programs) == n_programs
-    sj.simulate(arm, 0.05, sol.q, u=jnp.array([0.5]), n_save=2)
-    assert not simulate_module._simulate.programs
 
 
 def test_top_level_simulate_computes_efforts_in_a_program_of_their_own(tiered, arm):
@@ -262,6 +258,9 @@ def test_top_level_simulate_computes_efforts_in_a_program_of_their_own(tiered, a
 
     top = run(0.01)
     assert simulate_module._saved_inputs.programs  # the efforts' own program
+    # the integration starts at the default level (tiered=False: its one call may
+    # run long), so it has no tiered programs
+    assert not simulate_module._simulate.programs
     inside = jax.jit(run)(0.01)
     assert top.efforts.shape == (4, 1) and top.u.shape == (4, 1)
     for field in ("q", "qd", "u", "efforts"):
