@@ -186,7 +186,12 @@ def jit(fun: Callable, *, tiered: bool = True) -> Callable:
         if not _top_level():
             return plain(*args, **kwargs)
         mode = compile_mode()
-        if mode == "full" or (mode == "tiered" and not tiered) or not _tiers_apply():
+        if (
+            mode == "full"
+            or (mode == "tiered" and not tiered)
+            or jax.config.jax_disable_jit  # filter_jit then runs the Python as is
+            or not _tiers_apply()
+        ):
             return full()(*args, **kwargs)
         key = _signature(args, kwargs)
         program = programs.get(key)

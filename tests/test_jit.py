@@ -216,6 +216,17 @@ def test_tiered_program_starts_at_O0_and_is_compiled_again_once_hot(tiered):
     assert len(f.programs) == 3 and tiered[2:] == 2 * [tiered[0]]
 
 
+def test_tiered_mode_respects_disable_jit(tiered):
+    """Under ``jax.disable_jit()`` (debugging) a tiered function runs its Python op
+    by op, as a filter_jit does: no program is lowered or compiled for it."""
+    seen = []
+    f = sjit.jit(lambda x: seen.append(type(x)) or 2.0 * x)
+    with jax.disable_jit():
+        assert float(f(jnp.asarray(1.5))) == 3.0
+    assert not f.programs and not tiered
+    assert seen and not issubclass(seen[0], jax.core.Tracer)  # ran on the array
+
+
 def test_tiered_programs_calls_below_the_budget_stay_at_O0(tiered):
     """Ski rental: calls whose run time adds up to less than the -O0 compile keep the
     -O0 program (no second compile); the time they ran is what is counted."""
