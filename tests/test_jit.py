@@ -112,27 +112,36 @@ def test_results_agree_with_xla_default_options(arm):
     np.testing.assert_allclose(e0, e1, rtol=1e-10, atol=1e-13)
 
 
-def test_results_agree_at_xla_default_optimisation_level(arm, jit_optimised):
+def _angle(t):
+    """The arm's prescribed angle [rad] in the motions below."""
+    return jnp.stack([0.5 + 0.2 * jnp.sin(3.0 * t)])
+
+
+@pytest.fixture(scope="module")
+def arm_motion(arm):
+    """``run(th)``: statics at angle ``th``, then 0.2 s of motion from there (ROS34PW2,
+    named: "auto" decides from the structure under a jit), and its values at 0.5
+    from one program compiled as the suite compiles (-O0)."""
+
+    def run(th):
+        sol = sj.solve_statics(arm, u=jnp.stack([th]))
+        tr = sj.simulate(
+            arm, 0.2, sol.q, u=_angle, n_save=3, solver="ros34pw2", throw=False
+        )
+        return sol.q, sol.efforts, tr.q, tr.qd, tr.u, tr.efforts
+
+    opts = sj.compiler_options()
+    return run, jax.jit(run, compiler_options=opts)(jnp.asarray(0.5))
+
+
+def test_results_agree_at_xla_default_optimisation_level(arm_motion, jit_optimised):
     """The suite compiles with LLVM at -O0 (tests/conftest.py); users get XLA's
     default level. Statics and 0.2 s of dynamics of the prescribed arm compiled at
     level 2 (``xla_backend_optimization_level``, passed per program) equal the
     suite's -O0 programs: the level changes machine code, not the arithmetic
     (1e-12 relative; measured equal to rounding)."""
-
-    def run(th):
-        sol = sj.solve_statics(arm, u=jnp.stack([th]))
-        tr = sj.simulate(
-            arm,
-            0.2,
-            sol.q,
-            u=lambda t: jnp.stack([th + 0.2 * jnp.sin(3.0 * t)]),
-            n_save=3,
-            throw=False,
-        )
-        return sol.q, sol.efforts, tr.q, tr.qd
-
+    run, in_suite = arm_motion
     at_default = jit_optimised(run)(jnp.asarray(0.5))  # conftest.py: level 2
-    in_suite = jax.jit(run, compiler_options=sj.compiler_options())(jnp.asarray(0.5))
     for a, b in zip(at_default, in_suite, strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-13)
 
@@ -254,28 +263,22 @@ def test_tiered_mode_applies_to_top_level_calls_of_sorojax_functions(tiered, arm
     assert len(_solve_statics.programs) == n_programs
 
 
-def test_top_level_simulate_computes_efforts_in_a_program_of_their_own(tiered, arm):
+def test_top_level_simulate_computes_efforts_in_a_program_of_their_own(
+    tiered, arm, arm_motion
+):
     """In the compile tiers, at top level, the inputs, prescribed efforts and
     multipliers at the save points come from a program of their own
     (``_saved_inputs``, at -O0: the integration's program compiles without that
     copy of the right-hand side); inside a user's ``jit`` they are part of the one
     program. Both give the same values (1e-12 relative: same arithmetic, separately
     compiled)."""
-    u = lambda t: jnp.stack([0.4 + 0.3 * jnp.sin(2.0 * t)])  # noqa: E731
-
-    def run(s):  # a named solver: "auto" decides from the structure under a jit
-        q0 = s * jnp.ones(arm.n_dof)
-        return sj.simulate(arm, 0.1, q0, u=u, n_save=4, solver="tsit5")
-
-    top = run(0.01)
+    _, (q_static, _, *inside) = arm_motion  # from inside one jitted program
+    top = sj.simulate(arm, 0.2, q_static, u=_angle, n_save=3, solver="ros34pw2")
     assert simulate_module._saved_inputs.programs  # the efforts' own program
     # the integration starts at the default level (tiered=False: its one call may
     # run long), so it has no tiered programs
     assert not simulate_module._simulate.programs
-    inside = jax.jit(run)(0.01)
-    assert top.efforts.shape == (4, 1) and top.u.shape == (4, 1)
-    for field in ("q", "qd", "u", "efforts"):
-        np.testing.assert_allclose(
-            getattr(top, field), getattr(inside, field), rtol=1e-12, atol=1e-13
-        )
-    np.testing.assert_allclose(top.u[:, 0], u(top.t)[0], rtol=1e-14)
+    assert top.efforts.shape == (3, 1) and top.u.shape == (3, 1)
+    for a, b in zip((top.q, top.qd, top.u, top.efforts), inside, strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-13)
+    np.testing.assert_allclose(top.u[:, 0], _angle(top.t)[0], rtol=1e-14)
