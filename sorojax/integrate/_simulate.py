@@ -308,7 +308,8 @@ def _simulate(
     u_const: Array,
     inputs_inline: bool,
 ) -> Trajectory:
-    data = precompute(linkage)  # y0 is consistent (_initial_state)
+    data = precompute(linkage)
+    y0 = consistent_start(linkage, data, t0, y0, u_fn, u_const)
     sol = diffrax.diffeqsolve(
         _vector_field(linkage, generalized_force, u_fn),
         solver,
@@ -455,15 +456,7 @@ def simulate(
     if ts is None and n_save < 1:
         raise ValueError(f"n_save = {n_save}; give at least 1 save time.")
     q0, y0, ts_ = _initial_state(
-        linkage,
-        q0,
-        qd0,
-        t0_,
-        t1_,
-        u_fn,
-        u_const,
-        n_save if ts is None else None,
-        project=True,
+        linkage, q0, qd0, t0_, t1_, u_fn, u_const, n_save if ts is None else None
     )
     if ts is not None:
         ts_ = jnp.asarray(ts, dtype=dtype).reshape(-1)
@@ -551,16 +544,11 @@ def simulate(
 
 
 @jit
-def _initial_state(
-    linkage: Linkage, q0, qd0, t0, t1, u_fn, u_const, n_save, project: bool = False
-):
+def _initial_state(linkage: Linkage, q0, qd0, t0, t1, u_fn, u_const, n_save):
     """``(q0, y0, ts)`` with the prescribed coordinates started on their motion.
 
     The prescribed coordinates take u(t0) and its derivative; ``ts`` is ``n_save``
-    evenly spaced save times (None when ts is given). ``project``: velocities
-    projected onto the constraints too (:func:`consistent_start`; a mass matrix and
-    the loops' Jacobian: here, and not in the integration's program, it is compiled
-    in sorojax's tiers, at -O0 first, since it runs once).
+    evenly spaced save times (None when ts is given).
 
     One compiled program instead of a dozen single operations run one by one (each
     compiled on first use).
@@ -570,8 +558,6 @@ def _initial_state(
         qp, qdp, _ = prescribed_motion(linkage, _input_function(u_fn, u_const), t0)
         q0, qd0 = q0.at[qi].set(qp), qd0.at[qi].set(qdp)
     y0 = jnp.concatenate([q0, qd0.astype(q0.dtype)])
-    if project and _needs_inputs(linkage):
-        y0 = consistent_start(linkage, precompute(linkage), t0, y0, u_fn, u_const)
     return q0, y0, None if n_save is None else jnp.linspace(t0, t1, n_save)
 
 
