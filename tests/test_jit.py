@@ -250,16 +250,21 @@ def test_tiered_programs_calls_below_the_budget_stay_at_O0(tiered):
     assert 0.0 < program.spent < 60.0
 
 
-def test_tiered_mode_applies_to_top_level_calls_of_sorojax_functions(tiered, arm):
-    """``solve_statics`` at top level is a tiered program; inside a user's ``jit``
-    it is traced into the user's program (no tier, no compile of its own)."""
+def test_tiered_mode_applies_to_top_level_calls_of_sorojax_functions(
+    tiered, arm, arm_motion
+):
+    """``solve_statics`` at top level is a tiered program, with the values of the
+    same solve inside a jitted program (1e-12); inside a user's trace it is traced
+    into the user's program (no tier, no program of its own)."""
     from sorojax.statics._solve import _solve_statics
 
     sol = sj.solve_statics(arm, u=jnp.array([0.5]))
     n_programs = len(_solve_statics.programs)
     assert n_programs >= 1, "solve_statics made no tiered program"
-    q = jax.jit(lambda th: sj.solve_statics(arm, u=jnp.stack([th])).q)(0.5)
-    np.testing.assert_allclose(q, sol.q, rtol=1e-12, atol=1e-14)
+    _, (q_static, efforts, *_) = arm_motion  # the same statics inside a jit
+    np.testing.assert_allclose(sol.q, q_static, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(sol.efforts, efforts, rtol=1e-12, atol=1e-14)
+    jax.eval_shape(lambda th: sj.solve_statics(arm, u=jnp.stack([th])).q, 0.5)
     assert len(_solve_statics.programs) == n_programs
 
 
