@@ -107,6 +107,7 @@ def _demo(args) -> int:
     import numpy as np
 
     from . import RESULTS, compiler_options, enable_compilation_cache
+    from ._jit import FAST_OPTIONS
 
     cache = enable_compilation_cache()
     # The program exported ahead of time skips tracing and lowering (~0.7 s of a
@@ -121,7 +122,7 @@ def _demo(args) -> int:
     # HLO program and arithmetic; the warm run is a few times slower).
     options = compiler_options()
     if not args.optimised:
-        options["xla_backend_optimization_level"] = 0
+        options.update(FAST_OPTIONS)
     level = "XLA's default level" if args.optimised else "LLVM -O0 for a fast start"
     run = jax.jit(program, compiler_options=options)
     t0 = time.perf_counter()

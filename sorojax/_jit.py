@@ -126,9 +126,10 @@ def _signature(args, kwargs) -> tuple:
 class _TieredProgram:
     """One program of a tiered function: -O0 first, XLA's default level once hot."""
 
-    __slots__ = ("lowered", "fast", "full", "budget", "spent")
+    __slots__ = ("options", "lowered", "fast", "full", "budget", "spent")
 
     def __init__(self, lower: Callable, options: dict[str, Any]):
+        self.options = options  # of the second compile
         start = time.perf_counter()
         self.lowered = lower()  # traced and lowered once for both tiers
         middle = time.perf_counter()
@@ -141,11 +142,11 @@ class _TieredProgram:
         self.spent = 0.0
         self.full = None
 
-    def __call__(self, options, promote, args, kwargs):
+    def __call__(self, promote: bool, args, kwargs):
         if self.full is not None:
             return self.full(*args, **kwargs)
         if promote and self.spent >= self.budget:
-            self.full = self.lowered.compile(options)
+            self.full = self.lowered.compile(self.options)
             self.lowered = None
             return self.full(*args, **kwargs)
         # count the compiled code's run time only: equinox's argument handling around
@@ -186,21 +187,15 @@ def jit(fun: Callable, *, tiered: bool = True) -> Callable:
         if not _top_level():
             return plain(*args, **kwargs)
         mode = compile_mode()
-        if (
-            mode == "full"
-            or (mode == "tiered" and not tiered)
-            or jax.config.jax_disable_jit  # filter_jit then runs the Python as is
-            or not _tiers_apply()
-        ):
+        if not _in_tiers(mode) or (mode == "tiered" and not tiered):
             return full()(*args, **kwargs)
         key = _signature(args, kwargs)
         program = programs.get(key)
-        options = _probed_options()
         if program is None:
             program = programs[key] = _TieredProgram(
-                functools.partial(plain.lower, *args, **kwargs), options
+                functools.partial(plain.lower, *args, **kwargs), _probed_options()
             )
-        return program(options, mode == "tiered", args, kwargs)
+        return program(mode == "tiered", args, kwargs)
 
     call.programs = programs  # the tiered programs, by signature (for inspection)
     # ahead-of-time compilation, as on a filter_jit: f.lower(*args).compile()
@@ -208,7 +203,21 @@ def jit(fun: Callable, *, tiered: bool = True) -> Callable:
     return call
 
 
+def _in_tiers(mode: str) -> bool:
+    """Top-level calls compile in tiers now (``mode``: :func:`compile_mode`).
+
+    Not in the ``full`` mode, not under ``jax.disable_jit`` (filter_jit then runs
+    the Python as is), and only where -O0 means LLVM's CPU code generation: on CPU
+    with sorojax's options.
+    """
+    return mode != "full" and not jax.config.jax_disable_jit and _tiers_apply()
+
+
+def in_tiers() -> bool:
+    """A top-level call made here would be compiled in tiers (outside any trace)."""
+    return _top_level() and _in_tiers(compile_mode())
+
+
 @functools.cache
 def _tiers_apply() -> bool:
-    """-O0 means LLVM's CPU code generation: tiers on CPU with sorojax's options."""
     return bool(_probed_options()) and jax.default_backend() == "cpu"

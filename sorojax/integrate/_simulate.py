@@ -27,7 +27,7 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, ArrayLike
 
-from .._jit import _tiers_apply, _top_level, compile_mode, jit
+from .._jit import in_tiers, jit
 from .._results import RESULTS
 from ..dynamics._eom import (
     GeneralizedForce,
@@ -496,7 +496,7 @@ def simulate(
     # own, compiled at -O0 (see _saved_inputs); compiled at the default level they
     # cost about as much inside the integration's program as apart, and inside a
     # trace they are part of the caller's program.
-    inline = not (_top_level() and compile_mode() != "full" and _tiers_apply())
+    inline = not in_tiers()
     with _errors_as_nans():
         traj = _simulate(
             linkage,
