@@ -121,9 +121,8 @@ def build(name):
     raise ValueError(f"unknown target {name!r}: give one of {TARGETS}")
 
 
-def child(name, repeats):
-    """Measure one target in this (fresh) process; print one JSON line."""
-    t_start = time.perf_counter()
+def start(name):
+    """A child's set-up: JAX (x64, cache off), every sorojax module, the target."""
     import jax
 
     jax.config.update("jax_enable_x64", True)
@@ -131,8 +130,14 @@ def child(name, repeats):
     import sorojax as sj
 
     for public in sj.__all__:  # import every module now (sorojax imports lazily), so
-        getattr(sj, public)  # that the trace below times tracing only
-    f, args, n_dof = build(name)
+        getattr(sj, public)  # that the timed first call times no imports
+    return jax, sj, *build(name)
+
+
+def child(name, repeats):
+    """Measure one target in this (fresh) process; print one JSON line."""
+    t_start = time.perf_counter()
+    jax, sj, f, args, n_dof = start(name)
     t_import = time.perf_counter() - t_start
     jitted = jax.jit(f, compiler_options=sj.compiler_options())
     t = time.perf_counter()
@@ -184,15 +189,7 @@ def child_tiered(name, repeats):
     import os
 
     os.environ["SOROJAX_COMPILE"] = "tiered"
-    import jax
-
-    jax.config.update("jax_enable_x64", True)
-    jax.config.update("jax_enable_compilation_cache", False)
-    import sorojax as sj
-
-    for public in sj.__all__:
-        getattr(sj, public)
-    f, args, n_dof = build(name)
+    jax, sj, f, args, n_dof = start(name)
     jitted = sj.jit(f)
     t = time.perf_counter()
     jax.block_until_ready(jitted(*args))
