@@ -25,8 +25,10 @@ program; results agree to rounding (~1e-15 relative), not bit for bit: set
 ``SOROJAX_COMPILE=full`` for bit-for-bit repeatable runs.
 """
 
+import concurrent.futures
 import functools
 import os
+import threading
 import time
 from collections.abc import Callable
 from typing import Any
@@ -182,6 +184,11 @@ def jit(fun: Callable, *, tiered: bool = True) -> Callable:
             tuned.append(eqx.filter_jit(fun, compiler_options=opts) if opts else plain)
         return tuned[0]
 
+    def new_program(args, kwargs):
+        return _TieredProgram(
+            functools.partial(plain.lower, *args, **kwargs), _probed_options()
+        )
+
     @functools.wraps(fun)
     def call(*args, **kwargs):
         if not _top_level():
@@ -191,16 +198,54 @@ def jit(fun: Callable, *, tiered: bool = True) -> Callable:
             return full()(*args, **kwargs)
         key = _signature(args, kwargs)
         program = programs.get(key)
+        if isinstance(program, concurrent.futures.Future):  # compiled ahead
+            try:
+                program = programs[key] = program.result()
+            except BaseException:
+                programs.pop(key, None)  # a later call traces again
+                raise
         if program is None:
-            program = programs[key] = _TieredProgram(
-                functools.partial(plain.lower, *args, **kwargs), _probed_options()
-            )
+            program = programs[key] = new_program(args, kwargs)
         return program(mode == "tiered", args, kwargs)
 
+    def compile_ahead(*args, **kwargs) -> concurrent.futures.Future | None:
+        """Start compiling the program of ``call(*args, **kwargs)`` in a thread.
+
+        For a call whose arguments' shapes are known before their values (the
+        efforts at a trajectory's save points, while the integration runs): the
+        trace, the lowering and the -O0 compile run beside the caller's work, and
+        the call waits for them. Only where the call would compile in tiers
+        (elsewhere nothing is done: None). Returns the future of the program.
+        """
+        mode = compile_mode()
+        if not (_top_level() and _in_tiers(mode)) or (mode == "tiered" and not tiered):
+            return None
+        key = _signature(args, kwargs)
+        if key in programs:
+            return None
+        _probed_options()  # probed here, not in the thread
+        future = programs[key] = _compile_thread().submit(new_program, args, kwargs)
+        return future
+
     call.programs = programs  # the tiered programs, by signature (for inspection)
+    call.compile_ahead = compile_ahead
     # ahead-of-time compilation, as on a filter_jit: f.lower(*args).compile()
     call.lower = lambda *a, **kw: (full() if _top_level() else plain).lower(*a, **kw)
     return call
+
+
+_THREAD: list[concurrent.futures.ThreadPoolExecutor] = []
+_THREAD_LOCK = threading.Lock()
+
+
+def _compile_thread() -> concurrent.futures.ThreadPoolExecutor:
+    """One worker thread for programs compiled ahead (made on first use)."""
+    with _THREAD_LOCK:
+        if not _THREAD:
+            _THREAD.append(
+                concurrent.futures.ThreadPoolExecutor(1, "sorojax-compile-ahead")
+            )
+        return _THREAD[0]
 
 
 def _in_tiers(mode: str) -> bool:

@@ -225,6 +225,31 @@ def test_tiered_program_starts_at_O0_and_is_compiled_again_once_hot(tiered):
     assert len(f.programs) == 3 and tiered[2:] == 2 * [tiered[0]]
 
 
+def test_program_compiled_ahead_in_a_thread_serves_the_call(tiered):
+    """``compile_ahead`` traces and compiles (at -O0) the program of a call in a
+    worker thread; the call then uses that program (one compile in all) and gives
+    the plain function's values. A trace that fails in the thread raises at the
+    call, and leaves no program behind."""
+    f = sjit.jit(lambda x, n: jnp.cumsum(jnp.cos(x) * n))
+    x = jnp.linspace(0.0, 1.0, 7)
+    future = f.compile_ahead(jnp.zeros(7), 3)
+    assert future is not None
+    future.result()
+    assert f.compile_ahead(jnp.ones(7), 3) is None  # same signature: nothing new
+    np.testing.assert_allclose(f(x, 3), np.cumsum(np.cos(np.asarray(x)) * 3), 1e-14)
+    assert tiered == [{**sj.compiler_options(), **sjit.FAST_OPTIONS}]
+    assert len(f.programs) == 1
+
+    def bad(x):
+        raise KeyError("traced in the thread")
+
+    g = sjit.jit(bad)
+    assert g.compile_ahead(x) is not None
+    with pytest.raises(KeyError, match="traced in the thread"):
+        g(x)
+    assert not g.programs
+
+
 def test_tiered_mode_respects_disable_jit(tiered):
     """Under ``jax.disable_jit()`` (debugging) a tiered function runs its Python op
     by op, as a filter_jit does: no program is lowered or compiled for it."""
@@ -278,8 +303,18 @@ def test_top_level_simulate_computes_efforts_in_a_program_of_their_own(
     program. Both give the same values (1e-12 relative: same arithmetic, separately
     compiled)."""
     _, (q_static, _, *inside) = arm_motion  # from inside one jitted program
+    before = dict(simulate_module._saved_inputs.programs)
     top = sj.simulate(arm, 0.2, q_static, u=_angle, n_save=3, solver="ros34pw2")
-    assert simulate_module._saved_inputs.programs  # the efforts' own program
+    # the efforts' own program: compiled ahead (in a thread, while the integration
+    # compiled and ran) for the trajectory's shapes, and used: one new program
+    new = {
+        k: p
+        for k, p in simulate_module._saved_inputs.programs.items()
+        if k not in before
+    }
+    assert len(new) == 1, f"{len(new)} programs for the efforts (compiled ahead: 1)"
+    (program,) = new.values()
+    assert isinstance(program, sjit._TieredProgram) and program.spent > 0.0
     # the integration starts at the default level (tiered=False: its one call may
     # run long), so it has no tiered programs
     assert not simulate_module._simulate.programs
