@@ -147,7 +147,11 @@ def pd_policy(env, state, target, T_ff, feedforward):
 
 
 def evaluate(env, s0, targets, T_ff, policy=None, feedforward=None):
-    """Final tip error [m] per target, and tip paths (``policy``, else the PD law)."""
+    """Final tip error [m] per target, and tip paths.
+
+    Under ``policy``, else the PD law with ``feedforward`` (a scalar or one value
+    per target).
+    """
 
     def one(target, T, ff):
         if policy is not None:
@@ -158,7 +162,7 @@ def evaluate(env, s0, targets, T_ff, policy=None, feedforward=None):
             )
         return jnp.linalg.norm(tips[-1] - target), tips, jnp.max(res)
 
-    ff = jnp.full(targets.shape[0], 0.0 if feedforward is None else feedforward)
+    ff = jnp.broadcast_to(0.0 if feedforward is None else feedforward, len(targets))
     err, tips, res = jax.jit(jax.vmap(one), compiler_options=sj.compiler_options())(
         targets, T_ff, ff
     )
@@ -218,8 +222,16 @@ def main(argv=None):
     policy = eqx.combine(params, static)
 
     err_mlp, tips_mlp = evaluate(env, s0, test_targets, test_T, policy=policy)
-    err_ff, tips_ff = evaluate(env, s0, test_targets, test_T, feedforward=1.0)
-    err_pd, _ = evaluate(env, s0, test_targets, test_T, feedforward=0.0)
+    # both PD variants in one batch: one compiled program
+    n_test = len(test_targets)
+    err_pd2, tips_pd2 = evaluate(
+        env,
+        s0,
+        jnp.concatenate([test_targets, test_targets]),
+        jnp.concatenate([test_T, test_T]),
+        feedforward=jnp.repeat(jnp.array([1.0, 0.0]), n_test),
+    )
+    err_ff, tips_ff, err_pd = err_pd2[:n_test], tips_pd2[:n_test], err_pd2[n_test:]
     hanging = np.asarray(env.tip_position(s0))
     spread = float(
         np.median(np.linalg.norm(np.asarray(test_targets) - hanging, axis=1))
