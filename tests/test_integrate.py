@@ -44,9 +44,12 @@ def test_strain_coordinates_reproduce_a_circle(rod):
 
 
 def test_strain_coordinates_errors(rod):
-    """A link that is not a soft link is refused, naming the link."""
+    """A link that is not a soft link is refused, naming the link; a strain that is
+    not a 6-vector is refused, naming its shape."""
     with pytest.raises(ValueError, match="link = 2"):
         sj.strain_coordinates(rod, jnp.zeros(6), link=2)
+    with pytest.raises(ValueError, match=r"strain gives shape \(2,\); expected \(6,\)"):
+        sj.strain_coordinates(rod, [0.0, 1.0])
 
 
 def test_max_steps_gives_result_code_and_clear_error(rod):
