@@ -19,11 +19,37 @@ import sys
 import time
 
 TOP = 12
+EAGER_NAMES: set = set()
 EVENTS = {
     "/jax/core/compile/jaxpr_trace_duration": "trace",
     "/jax/core/compile/jaxpr_to_mlir_module_duration": "lower",
     "/jax/core/compile/backend_compile_duration": "compile",
 }
+
+
+def _eager_names():
+    """Names of jax.numpy / lax functions (an eager call compiles ``jit(name)``)."""
+    import jax.lax
+    import jax.numpy as jnp
+
+    names = set(dir(jnp)) | set(dir(jax.lax)) | set(dir(jnp.linalg))
+    return names | {
+        "stage",
+        "broadcast_in_dim",
+        "convert_element_type",
+        "squeeze",
+        "dynamic_slice",
+        "scatter",
+        "scatter-add",
+        "integer_pow",
+        "select_n",
+        "_where",
+        "_einsum",
+        "_squeeze",
+        "_diag",
+        "_reduce_sum",
+        "true_divide",
+    }
 
 
 def _union(spans):
@@ -68,6 +94,8 @@ def main():
         if e.code not in (None, 0):
             raise
     jax.effects_barrier()
+    global EAGER_NAMES
+    EAGER_NAMES = _eager_names()
     end = time.time()
     total = end - start
     parts = {"import": imported - start}
@@ -84,6 +112,13 @@ def main():
         "({compile programs})".format(**parts)
         + f" | rest {rest:.2f} s"
     )
+    # programs of one operation (run outside jit, each compiled on first use)
+    ops = [
+        t
+        for (k, f), t in per_fun.items()
+        if k == "compile" and f.startswith("jit(") and f[4:-1] in EAGER_NAMES
+    ]
+    print(f"   single operations run eagerly: {len(ops)} compiles, {sum(ops):.2f} s")
     for kind in ("trace", "lower", "compile"):
         rows = sorted(
             ((t, f) for (k, f), t in per_fun.items() if k == kind), reverse=True

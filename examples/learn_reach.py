@@ -72,7 +72,7 @@ def targets_of(env: sj.Environment, key, n: int):
         sol = sj.solve_statics(env.linkage, u=T_i, throw=False)
         return sj.tip_pose(env.linkage, sol.q)[:3, 3], sol.result._value
 
-    tips, results = jax.jit(jax.vmap(tip))(T)
+    tips, results = sj.jit(jax.vmap(tip))(T)  # run once: -O0 tier
     if np.any(np.asarray(results) != 0):
         raise RuntimeError("a target's statics solve failed")
     return tips, T
