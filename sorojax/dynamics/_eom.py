@@ -12,6 +12,7 @@ from collections.abc import Callable
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax.scipy.linalg import cho_factor, cho_solve
 from jaxtyping import Array, ArrayLike, Float
 
@@ -327,8 +328,8 @@ def equations_of_motion(
 def as_inputs(linkage: Linkage, u, dtype) -> Array:
     """``u`` as an ``(n_inputs,)`` array (zeros if None), or a clear error."""
     m = linkage.n_inputs
-    if u is None:
-        return jnp.zeros(m, dtype)
+    if u is None:  # made on the host: jnp.zeros compiles a program per size
+        return jnp.asarray(np.zeros(m, dtype))
     u = jnp.asarray(u, dtype=dtype).reshape(-1) if m else jnp.zeros(0, dtype)
     if u.shape != (m,):
         raise ValueError(

@@ -449,8 +449,10 @@ def simulate(
         ValueError: bad shapes, unknown solver, ``ts`` outside ``[t0, t1]``.
         RuntimeError: the integration failed and ``throw`` is True.
     """
-    q0 = jnp.zeros(linkage.n_dof) if q0 is None else _as_q(linkage, q0, "q0")
-    qd0 = jnp.zeros_like(q0) if qd0 is None else _as_q(linkage, qd0, "qd0")
+    # default zeros made on the host (jnp.zeros compiles a program per size)
+    zeros = np.zeros(linkage.n_dof)
+    q0 = _as_q(linkage, zeros if q0 is None else q0, "q0")
+    qd0 = _as_q(linkage, zeros.astype(q0.dtype) if qd0 is None else qd0, "qd0")
     dtype = q0.dtype
     t0_, t1_ = jnp.asarray(t0, dtype=dtype), jnp.asarray(t1, dtype=dtype)
     u_fn, u_const = _split_inputs(linkage, u, dtype)
@@ -592,9 +594,9 @@ def _split_inputs(linkage: Linkage, u, dtype):
                 "u is a function but this linkage has no actuators (n_inputs = 0): "
                 "add actuators to Linkage(actuators=...) or drop u."
             )
-        return u, jnp.zeros(m, dtype)
+        return u, jnp.asarray(np.zeros(m, dtype))
     if u is None:
-        return None, jnp.zeros(m, dtype)
+        return None, jnp.asarray(np.zeros(m, dtype))
     u = jnp.asarray(u, dtype=dtype).reshape(-1)
     if u.shape != (m,):
         raise ValueError(

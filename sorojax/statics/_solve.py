@@ -629,7 +629,8 @@ def solve_statics(
     """
     # Defaults as arrays here, so that a call with and one without q0 or u share
     # one compiled program (and bad shapes fail before anything compiles).
-    q0 = _as_q(linkage, jnp.zeros(linkage.n_dof) if q0 is None else q0, "q0")
+    # (zeros made on the host: jnp.zeros would compile a program per size)
+    q0 = _as_q(linkage, np.zeros(linkage.n_dof) if q0 is None else q0, "q0")
     u = as_inputs(linkage, None if u is None else jnp.asarray(u, float), q0.dtype)
     sol = _solve_statics(
         linkage,
