@@ -167,39 +167,55 @@ def _correct(family, u, q_p0, t, z_pred, t_w, *, max_iter: int, tol: float):
         f, scale = _rows(family, u, q_p0, t, z_)
         return f, (f, scale)
 
+    # Jitted: the shape probe below and the loop body share one trace.
+    @jax.jit
     def evaluate(z):
         J, (f, scale) = jax.jacfwd(rows_and_aux, has_aux=True)(z)
         return f, scale, J
-
-    f0, scale0, J0 = evaluate(z_pred)
 
     def bordered(f, J, z):
         G = jnp.concatenate([f, (t_w @ (z - z_pred))[None]])
         JG = jnp.concatenate([J, t_w[None, :]], axis=0)
         return G, JG
 
-    def cond(c):
-        return ~c[2] & (c[1] < max_iter) & c[6]
-
+    # One evaluation (rows and Jacobian) per pass, at the top of the loop body: the
+    # program holds one copy of it (an evaluation before the loop and one in its
+    # body compiled it twice). A pass evaluates at z and, while Newton goes on
+    # (not converged, under max_iter, finite), takes the step from z; the pass
+    # after a converged step only evaluates there (the step is still taken), so
+    # f, scale and J are those at the returned z.
     def body(c):
-        z, it, _, f, scale, J, _ = c
+        z, it, conv, ok_prev, *_ = c
+        f, scale, J = evaluate(z)
+        finite = jnp.all(jnp.isfinite(f)) & jnp.all(jnp.isfinite(J)) & ok_prev
+        go = ~conv & (it < max_iter) & finite
         G, JG = bordered(f, J, z)
         dz = jnp.linalg.lstsq(JG, G)[0]
         ok = jnp.all(jnp.isfinite(dz))
-        # converged at z when the rows and the step from z are small; the step is
-        # still taken
-        conv = (jnp.max(jnp.abs(G)) <= tol) & (
+        # converged at z when the rows and the step from z are small
+        conv_z = (jnp.max(jnp.abs(G)) <= tol) & (
             jnp.max(jnp.abs(dz) / (1.0 + jnp.abs(z))) <= tol
         )
-        z_new = jnp.where(ok, z - dz, z)
-        f_n, scale_n, J_n = evaluate(z_new)
-        finite = jnp.all(jnp.isfinite(f_n)) & jnp.all(jnp.isfinite(J_n)) & ok
-        return z_new, it + 1, conv, f_n, scale_n, J_n, finite
+        return (
+            jnp.where(go & ok, z - dz, z),
+            jnp.where(go, it + 1, it),
+            jnp.where(go, conv_z, conv),
+            jnp.where(go, ok, ok_prev),
+            f,
+            scale,
+            J,
+            finite,
+            go,
+        )
 
-    z, it, conv, f, scale, J, finite = jax.lax.while_loop(
-        cond,
+    f0, scale0, J0 = (
+        jnp.zeros(a.shape, a.dtype) for a in jax.eval_shape(evaluate, z_pred)
+    )
+    true = jnp.asarray(True)
+    z, it, conv, _, f, scale, J, finite, _ = jax.lax.while_loop(
+        lambda c: c[-1],
         body,
-        (z_pred, jnp.asarray(0), jnp.asarray(False), f0, scale0, J0, jnp.asarray(True)),
+        (z_pred, jnp.asarray(0), jnp.asarray(False), true, f0, scale0, J0, true, true),
     )
     G, JG = bordered(f, J, z)
     conv = conv & finite
