@@ -30,7 +30,7 @@ import optimistix as optx
 from jax import lax
 from jaxtyping import Array, ArrayLike
 
-from .._jit import jit
+from .._jit import _top_level, jit
 from .._results import RESULTS, StaticsSolution
 from ..dynamics._actuation import actuation_loads
 from ..dynamics._constraints import (
@@ -376,12 +376,16 @@ def _solve_statics(
     max_steps: int = 64,
     rtol: float = 1e-10,
     atol: float = 1e-10,
+    differentiable: bool = True,
 ) -> StaticsSolution:
     """Jitted core of :func:`solve_statics`, which never throws.
 
     ``q0`` ``(n_dof,)`` and ``u`` ``(n_inputs,)`` come checked from the wrapper.
     Without a host callback the compiled program can be kept in JAX's persistent
-    compilation cache.
+    compilation cache. ``differentiable=False`` (a call made outside any JAX trace,
+    whose results no transformation can differentiate) leaves out the implicit
+    derivatives' closure conversion: the same compiled arithmetic, one trace of
+    the residual less (a quarter of the trace).
     """
     if load_steps is not None and (not isinstance(load_steps, int) or load_steps < 1):
         raise ValueError(f"load_steps = {load_steps!r}: give an integer >= 1 or None.")
@@ -490,16 +494,21 @@ def _solve_statics(
             RESULTS.nonlinear_divergence,
             result,
         )
-    # One closure conversion (a trace of the residual) for both custom derivatives.
-    full_args = with_load(args, one)
-    g_aux, consts = _closure_converted(fn_aux, x_star, full_args)
-    x_sol = _implicit_solution(
-        (lambda i, c: g_aux(i, c)[0], consts), x_star, full_args, closed
-    )
-    q, mu = full(x_sol, 1.0, u)
-    r = _with_derivative(
-        (lambda i, c: g_aux(i, c)[1], consts), r_star, (x_sol, full_args)
-    )
+    if differentiable:
+        # One closure conversion (a trace of the residual) for both custom
+        # derivatives.
+        full_args = with_load(args, one)
+        g_aux, consts = _closure_converted(fn_aux, x_star, full_args)
+        x_sol = _implicit_solution(
+            (lambda i, c: g_aux(i, c)[0], consts), x_star, full_args, closed
+        )
+        q, mu = full(x_sol, 1.0, u)
+        r = _with_derivative(
+            (lambda i, c: g_aux(i, c)[1], consts), r_star, (x_sol, full_args)
+        )
+    else:  # the same values; nothing can differentiate a top-level call
+        q, mu = full(x_star, 1.0, u)
+        r = r_star
     e = f_star[nf:]
     rank = numerical_rank(J[nf:, :nf]) if closed else jnp.zeros((), dtype=int)
     eigenvalues, _, n_manifold = reduced_tangent_spectrum(
@@ -644,6 +653,7 @@ def solve_statics(
         max_steps=max_steps,
         rtol=rtol,
         atol=atol,
+        differentiable=not _top_level(),
     )
     failed = sol.result != RESULTS.successful
     traced = isinstance(failed, jax.core.Tracer)
