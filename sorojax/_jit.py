@@ -173,6 +173,13 @@ def jit(fun: Callable, *, tiered: bool = True) -> Callable:
     start a JAX backend). Use it for your own programs around sorojax calls::
 
         tips = sorojax.jit(lambda loads: jax.vmap(tip_of)(loads))
+
+    ``f.compile_ahead(*args, **kwargs)`` starts tracing and compiling (at -O0) the
+    program of ``f(*args, **kwargs)`` in a worker thread, where it would be
+    compiled in tiers (else it does nothing); the call waits for it. Arrays of the
+    call's shapes and dtypes do (their values are not used; other arguments as in
+    the call): compile a program whose inputs are still being computed, e.g. by
+    a long integration.
     """
     plain = eqx.filter_jit(fun)
     tuned: list = []
