@@ -510,7 +510,7 @@ def simulate(
             _saved_inputs.compile_ahead(
                 linkage,
                 ts_,
-                jnp.zeros((ts_.shape[0], y0.shape[0]), y0.dtype),
+                np.zeros((ts_.shape[0], y0.shape[0]), y0.dtype),  # shapes only
                 u_fn,
                 u_const,
                 generalized_force,
