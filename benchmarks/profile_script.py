@@ -19,7 +19,6 @@ import sys
 import time
 
 TOP = 12
-EAGER_NAMES: set = set()
 EVENTS = {
     "/jax/core/compile/jaxpr_trace_duration": "trace",
     "/jax/core/compile/jaxpr_to_mlir_module_duration": "lower",
@@ -94,8 +93,7 @@ def main():
         if e.code not in (None, 0):
             raise
     jax.effects_barrier()
-    global EAGER_NAMES
-    EAGER_NAMES = _eager_names()
+    eager = _eager_names()
     end = time.time()
     total = end - start
     parts = {"import": imported - start}
@@ -116,7 +114,7 @@ def main():
     ops = [
         t
         for (k, f), t in per_fun.items()
-        if k == "compile" and f.startswith("jit(") and f[4:-1] in EAGER_NAMES
+        if k == "compile" and f.startswith("jit(") and f[4:-1] in eager
     ]
     print(f"   single operations run eagerly: {len(ops)} compiles, {sum(ops):.2f} s")
     for kind in ("trace", "lower", "compile"):

@@ -28,7 +28,6 @@ program; results agree to rounding (~1e-15 relative), not bit for bit: set
 import concurrent.futures
 import functools
 import os
-import threading
 import time
 from collections.abc import Callable
 from typing import Any
@@ -196,12 +195,16 @@ def jit(fun: Callable, *, tiered: bool = True) -> Callable:
             functools.partial(plain.lower, *args, **kwargs), _probed_options()
         )
 
+    def tiers_for(mode: str) -> bool:
+        """This function's top-level calls compile in tiers in ``mode``."""
+        return _in_tiers(mode) and (tiered or mode != "tiered")
+
     @functools.wraps(fun)
     def call(*args, **kwargs):
         if not _top_level():
             return plain(*args, **kwargs)
         mode = compile_mode()
-        if not _in_tiers(mode) or (mode == "tiered" and not tiered):
+        if not tiers_for(mode):
             return full()(*args, **kwargs)
         key = _signature(args, kwargs)
         program = programs.get(key)
@@ -224,14 +227,13 @@ def jit(fun: Callable, *, tiered: bool = True) -> Callable:
         the call waits for them. Only where the call would compile in tiers
         (elsewhere nothing is done: None). Returns the future of the program.
         """
-        mode = compile_mode()
-        if not (_top_level() and _in_tiers(mode)) or (mode == "tiered" and not tiered):
+        if not (_top_level() and tiers_for(compile_mode())):
             return None
         key = _signature(args, kwargs)
         if key in programs:
             return None
         _probed_options()  # probed here, not in the thread
-        future = programs[key] = _compile_thread().submit(new_program, args, kwargs)
+        future = programs[key] = _COMPILE_THREAD.submit(new_program, args, kwargs)
         return future
 
     call.programs = programs  # the tiered programs, by signature (for inspection)
@@ -241,18 +243,8 @@ def jit(fun: Callable, *, tiered: bool = True) -> Callable:
     return call
 
 
-_THREAD: list[concurrent.futures.ThreadPoolExecutor] = []
-_THREAD_LOCK = threading.Lock()
-
-
-def _compile_thread() -> concurrent.futures.ThreadPoolExecutor:
-    """One worker thread for programs compiled ahead (made on first use)."""
-    with _THREAD_LOCK:
-        if not _THREAD:
-            _THREAD.append(
-                concurrent.futures.ThreadPoolExecutor(1, "sorojax-compile-ahead")
-            )
-        return _THREAD[0]
+# One worker thread for programs compiled ahead (started on the first submit).
+_COMPILE_THREAD = concurrent.futures.ThreadPoolExecutor(1, "sorojax-compile-ahead")
 
 
 def _in_tiers(mode: str) -> bool:

@@ -385,7 +385,7 @@ def _solve_statics(
     compilation cache. ``differentiable=False`` (a call made outside any JAX trace,
     whose results no transformation can differentiate) leaves out the implicit
     derivatives' closure conversion: the same compiled arithmetic, one trace of
-    the residual less (a quarter of the trace).
+    the residual less (10-20 % of the trace).
     """
     if load_steps is not None and (not isinstance(load_steps, int) or load_steps < 1):
         raise ValueError(f"load_steps = {load_steps!r}: give an integer >= 1 or None.")
