@@ -76,6 +76,7 @@ _LAZY = {
     "Linkage": ".model",
     "Material": ".model",
     "MonomialBasis": ".model",
+    "PaddedBasis": ".model",
     "ObliquePath": ".model",
     "PointWrench": ".model",
     "RectangularSection": ".model",
@@ -83,6 +84,8 @@ _LAZY = {
     "SectionProperties": ".model",
     "SoftLink": ".model",
     "rectangle_torsion_constant": ".model",
+    "active_coordinates": ".model",
+    "size_class": ".model",
     "sorosim_mechanics": ".model",
     "translation": ".model",
     "precompute": ".model._precompute",
@@ -188,6 +191,7 @@ if TYPE_CHECKING:  # static analysers see the names as plain imports
     from .model import Linkage as Linkage
     from .model import Material as Material
     from .model import MonomialBasis as MonomialBasis
+    from .model import PaddedBasis as PaddedBasis
     from .model import ObliquePath as ObliquePath
     from .model import PointWrench as PointWrench
     from .model import RectangularSection as RectangularSection
@@ -195,6 +199,8 @@ if TYPE_CHECKING:  # static analysers see the names as plain imports
     from .model import SectionProperties as SectionProperties
     from .model import SoftLink as SoftLink
     from .model import rectangle_torsion_constant as rectangle_torsion_constant
+    from .model import active_coordinates as active_coordinates
+    from .model import size_class as size_class
     from .model import sorosim_mechanics as sorosim_mechanics
     from .model import translation as translation
     from .model._precompute import precompute as precompute

@@ -31,7 +31,7 @@ from ..kinematics._api import _as_q
 from ..kinematics._recursion import jacobians_dot, poses_and_jacobians
 from ..lie import ad
 from ..model._linkage import Linkage
-from ..model._precompute import LinkageData, precompute
+from ..model._precompute import LinkageData, lock_padding, precompute
 from ._wrench_recursion import force_from_wrenches, poses_with_records
 
 
@@ -42,7 +42,7 @@ def _weighted_inertia(data: LinkageData) -> Float[Array, "n_points 6 6"]:
 def _mass_from_J(data: LinkageData, J) -> Array:
     MJ = jnp.einsum("pab,pbj->paj", _weighted_inertia(data), J)
     M = jnp.einsum("pai,paj->ij", J, MJ)
-    return 0.5 * (M + M.T)
+    return lock_padding(0.5 * (M + M.T), data.locked)
 
 
 def _gyroscopic(Mw, eta, etadot_v):

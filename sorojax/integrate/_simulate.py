@@ -291,6 +291,23 @@ def _errors_as_nans():
         _errors.EQX_ON_ERROR = old
 
 
+def _own_rms_norm(norm, locked):
+    """``norm`` (an RMS) rescaled to the mean over the model's own components.
+
+    A size-class model's padded states have zero error (they stay at zero), so the
+    plain RMS over the padded state would be smaller than the model's own by
+    ``sqrt(n_own / n)``: larger steps than the unpadded model takes at the same
+    tolerances. Rescaled, the steps and the trajectory are the unpadded model's.
+    """
+    n_own = 2.0 * jnp.sum(1.0 - locked)
+
+    def own(x):
+        n = sum(leaf.size for leaf in jax.tree_util.tree_leaves(x))
+        return norm(x) * jnp.sqrt(n / n_own)
+
+    return own
+
+
 @functools.partial(jit, tiered=False)
 def _simulate(
     linkage: Linkage,
@@ -311,6 +328,10 @@ def _simulate(
 ) -> Trajectory:
     data = precompute(linkage)
     y0 = consistent_start(linkage, data, t0, y0, u_fn, u_const)
+    if data.locked is not None and isinstance(controller, diffrax.PIDController):
+        controller = eqx.tree_at(
+            lambda c: c.norm, controller, _own_rms_norm(controller.norm, data.locked)
+        )
     sol = diffrax.diffeqsolve(
         _vector_field(linkage, generalized_force, u_fn),
         solver,

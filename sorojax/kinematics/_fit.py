@@ -77,6 +77,8 @@ def _fit(linkage: Linkage, strain, link: int, q) -> Array:
             )
         target = target - dd.xi_ref
         A = jnp.einsum("p,pai,paj->ij", w, dd.Phi, dd.Phi)
+        if dd.locked is not None:  # padding (zero columns) fits to zero
+            A = A + jnp.diag(dd.locked)
         b = jnp.einsum("p,pai,pa->i", w, dd.Phi, target)
         if dd.n_dof:
             q = q.at[dd.offset : dd.offset + dd.n_dof].set(jnp.linalg.solve(A, b))

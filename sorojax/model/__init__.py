@@ -24,6 +24,9 @@ from ._basis import (
 from ._basis import (
     MonomialBasis as MonomialBasis,
 )
+from ._basis import (
+    PaddedBasis as PaddedBasis,
+)
 from ._closure import ClosedLoopJoint as ClosedLoopJoint
 from ._joint import Joint as Joint
 from ._layout import Layout as Layout
@@ -72,3 +75,5 @@ from ._section import (
 from ._section import SectionProperties as SectionProperties
 from ._section import rectangle_torsion_constant as rectangle_torsion_constant
 from ._section import sorosim_mechanics as sorosim_mechanics
+from ._size_class import active_coordinates as active_coordinates
+from ._size_class import size_class as size_class

@@ -182,3 +182,36 @@ class CustomBasis(AbstractStrainBasis):
                 f"CustomBasis.fn returned shape {out.shape}; expected (6, {self.dofs})."
             )
         return out
+
+
+class PaddedBasis(AbstractStrainBasis):
+    """A polynomial basis padded to a size class (see :func:`~sorojax.size_class`).
+
+    The class's basis has every padded mode at the class order; ``active`` keeps the
+    model's own columns (1) and zeroes the padding (0). Because ``active`` is an
+    array, models of one class share every compiled program whatever their own
+    orders (and, with ``modes`` padded too, their own modes). The padded
+    coordinates have zero basis columns: the linkage holds them at zero with a
+    stiffness and an inertia of their own (:func:`~sorojax.model.precompute`).
+
+    Attributes:
+        basis: the class's basis.
+        active: ``(n_dof,)`` 1.0 for the model's own columns, 0.0 for padding.
+    """
+
+    basis: AbstractPolynomialBasis
+    active: Float[Array, " n_dof"]
+
+    @property
+    def n_dof(self) -> int:
+        """Columns of the class's basis (the model's own and the padding)."""
+        return self.basis.n_dof
+
+    @property
+    def max_order(self) -> int:
+        """The class order (it sets the Magnus order and the default points)."""
+        return self.basis.max_order
+
+    def __call__(self, X1):
+        """The class's basis with the padded columns zero."""
+        return self.basis(X1) * self.active[None, :]

@@ -16,6 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from ._basis import PaddedBasis
 from ._layout import Layout
 from ._link import RigidLink, SoftLink
 from ._linkage import Linkage
@@ -64,6 +65,8 @@ class DivisionData(eqx.Module):
         xi_ref: (n_pts, 6) reference strain at the points.
         Sigma: (n_pts, 6, 6) stiffness at the points.
         Upsilon: (n_pts, 6, 6) damping at the points.
+        locked: (n,) 1 at padded coordinates of a :class:`~sorojax.model.PaddedBasis`
+            (their basis columns are zero), 0 elsewhere; None without padding.
     """
 
     offset: int = eqx.field(static=True)
@@ -75,6 +78,7 @@ class DivisionData(eqx.Module):
     xi_ref: Float[Array, "n_pts 6"]
     Sigma: Float[Array, "n_pts 6 6"]
     Upsilon: Float[Array, "n_pts 6 6"]
+    locked: Float[Array, " n"] | None = None
 
 
 class LinkData(eqx.Module):
@@ -173,6 +177,11 @@ class LinkageData(eqx.Module):
         D: (n_dof, n_dof) generalised damping.
         gravity: (3,) gravitational acceleration.
         steps: every Magnus step (joints and divisions) in one batch.
+        locked: (n_dof,) 1 at the padding coordinates of size-class models
+            (:func:`~sorojax.size_class`), 0 elsewhere; None (static) when no
+            division is padded. ``K`` holds them at zero with the mean diagonal
+            stiffness of the other coordinates, the mass matrix gives them their
+            mean diagonal inertia (:func:`lock_padding`).
     """
 
     n_dof: int = eqx.field(static=True)
@@ -183,6 +192,24 @@ class LinkageData(eqx.Module):
     K: Float[Array, "n_dof n_dof"]
     D: Float[Array, "n_dof n_dof"]
     gravity: Float[Array, "3"]
+    locked: Float[Array, " n_dof"] | None = None
+
+
+def lock_padding(A: Array, locked: Array | None) -> Array:
+    """``A`` (K, or a mass matrix) with its padded diagonal set to the mean of its
+    other diagonal entries (``A`` unchanged without padding).
+
+    The padded rows and columns of K and M are zero (their basis columns are), so
+    the padded coordinates are decoupled; this gives each a stiffness and an inertia
+    whose ratio lies within the model's own range (a diagonal-weighted mean of
+    ``K_ii / M_ii``), so that they neither stiffen the dynamics nor add a slow mode,
+    and they stay exactly at rest at zero under every load.
+    """
+    if locked is None:
+        return A
+    free = 1.0 - locked
+    mean = jnp.sum(jnp.diag(A) * free) / jnp.maximum(jnp.sum(free), 1.0)
+    return A + jnp.diag(locked * mean)
 
 
 def _scale_rows(L) -> Array:
@@ -205,6 +232,7 @@ def precompute(linkage: Linkage) -> LinkageData:
     w_dyn = [None] * n_pts  # traced weights (depend on lengths)
     M_pts: list = [None] * n_pts
     links = []
+    padded: list = []  # (offset, locked) of padded divisions
     for i, (link, ll) in enumerate(zip(linkage.links, lay.links, strict=True)):
         j = link.joint
         jo, jn = ll.joint_offset, ll.joint_n_dof
@@ -235,6 +263,10 @@ def precompute(linkage: Linkage) -> LinkageData:
                 )(jnp.asarray(X1))
                 wL = jnp.asarray(dl.w) * L
                 o, nd = dl.offset, dl.n_dof
+                locked = None
+                if isinstance(div.basis, PaddedBasis):
+                    locked = 1.0 - div.basis.active
+                    padded.append((o, locked))
                 if nd:
                     Kd = jnp.einsum("p,pai,pab,pbj->ij", wL, Phi, Sigma, Phi)
                     Dd = jnp.einsum("p,pai,pab,pbj->ij", wL, Phi, Ups, Phi)
@@ -254,6 +286,7 @@ def precompute(linkage: Linkage) -> LinkageData:
                         xi_ref=xr,
                         Sigma=Sigma,
                         Upsilon=Ups,
+                        locked=locked,
                     )
                 )
         else:
@@ -272,6 +305,12 @@ def precompute(linkage: Linkage) -> LinkageData:
                 divisions=tuple(divs),
             )
         )
+    locked = None
+    if padded:
+        locked = jnp.zeros(n)
+        for o, lk in padded:
+            locked = locked.at[o : o + lk.shape[0]].set(lk)
+        K = lock_padding(K, locked)
     zero6 = jnp.zeros((6, 6))
     point_M = jnp.stack([zero6 if m is None else m for m in M_pts])
     point_weight = jnp.stack(
@@ -286,4 +325,5 @@ def precompute(linkage: Linkage) -> LinkageData:
         K=K,
         D=D,
         gravity=linkage.gravity,
+        locked=locked,
     )

@@ -42,6 +42,7 @@ from ..model._basis import MODE_NAMES, LegendreBasis
 from ..model._link import Division, SoftLink
 from ..model._linkage import Linkage
 from ..model._precompute import precompute
+from ..model._size_class import replace_divisions
 from ._solve import _row_scale, free_coordinates, scaled_equilibrium, solve_statics
 
 # An order of -1 switches a mode off.
@@ -109,14 +110,9 @@ def with_orders(
         A new :class:`~sorojax.Linkage` (loads, actuators and loops unchanged).
 
     Raises:
-        ValueError: a bad key or order, or a linkage with ``added_mass`` (its
-            per-point shape depends on the points).
+        ValueError: a bad key or order, or a linkage with ``added_mass`` whose
+            points change (its per-point shape depends on them).
     """
-    if linkage.added_mass is not None:
-        raise ValueError(
-            "with_orders: this linkage has added_mass, whose shape depends on the "
-            "points; rebuild it by hand with the orders you need."
-        )
     known = {(i, k) for i, k, _ in _soft_divisions(linkage)}
     for key, o in orders.items():
         if key not in known:
@@ -129,36 +125,15 @@ def with_orders(
                 f"orders[{key!r}] = {o!r}: give six orders >= 0, or -1 for a mode "
                 f"off, in the order {MODE_NAMES}."
             )
-    links = []
-    for i, link in enumerate(linkage.links, start=1):
-        if not isinstance(link, SoftLink):
-            links.append(link)
-            continue
-        divs = []
-        for k, div in enumerate(link.divisions):
-            if (i, k) not in orders:
-                divs.append(div)
-                continue
-            o = tuple(int(x) for x in orders[(i, k)])
-            basis = LegendreBasis(tuple(x >= 0 for x in o), tuple(max(x, 0) for x in o))
-            ng = n_gauss.get((i, k)) if isinstance(n_gauss, dict) else n_gauss
-            divs.append(Division(div.length, div.section, basis, ng, div.xi_ref))
-        links.append(
-            SoftLink(divs, link.material, link.joint, link.g_i, link.g_f, link.color)
-        )
-    return Linkage(
-        links,
-        parents=linkage.parents,
-        placements=linkage.placements,
-        gravity=linkage.gravity,
-        point_wrenches=linkage.point_wrenches,
-        custom_wrench=linkage.custom_wrench,
-        actuators=linkage.actuators,
-        closed_loops=linkage.closed_loops,
-        custom_actuation=linkage.custom_actuation,
-        actuator_strength=linkage.actuator_strength,
-        baumgarte_time=linkage.baumgarte_time,
-    )
+    def change(i: int, k: int, div: Division) -> Division:
+        if (i, k) not in orders:
+            return div
+        o = tuple(int(x) for x in orders[(i, k)])
+        basis = LegendreBasis(tuple(x >= 0 for x in o), tuple(max(x, 0) for x in o))
+        ng = n_gauss.get((i, k)) if isinstance(n_gauss, dict) else n_gauss
+        return Division(div.length, div.section, basis, ng, div.xi_ref)
+
+    return replace_divisions(linkage, change, "with_orders")
 
 
 def _coefficient_index(linkage: Linkage) -> dict:

@@ -1,0 +1,170 @@
+"""Size classes: models of different orders (and modes) that share compiled programs.
+
+JAX compiles one program per model *structure*: the number of coordinates of every
+division is part of every array shape, so a new polynomial order or set of modes
+compiles again. :func:`size_class` pads a model to a class: every soft division gets
+the class's modes at the class order and a fixed number of points, and a 0/1 array
+(:class:`~sorojax.model.PaddedBasis`) switches off the columns the model does not
+have. The class's structure is then fixed, and the model's own orders and modes are
+array values: a convergence study over orders 1..P, or a sweep that switches modes
+on and off, compiles each program once.
+
+The padded coordinates are decoupled and held at zero (their basis columns are
+zero; ``K`` and ``M`` give them the mean diagonal stiffness and inertia of the
+other coordinates), so a padded model's equilibria and motions are those of the
+model at the class's points and Magnus order. What recompiles: the class itself
+(its order, its modes, its number of points) and the number of divisions, links or
+loads (each changes the number of points or coordinates).
+"""
+
+from collections.abc import Callable
+
+import jax.numpy as jnp
+import numpy as np
+
+from ._basis import MODE_NAMES, AbstractPolynomialBasis, PaddedBasis
+from ._link import Division, SoftLink
+from ._linkage import Linkage
+
+
+def replace_divisions(
+    linkage: Linkage, fn: Callable[[int, int, Division], Division], what: str
+) -> Linkage:
+    """The same linkage with each soft division ``div`` replaced by ``fn(i, k, div)``
+    (1-based link ``i``, 0-based division ``k``); loads, actuators and loops kept.
+
+    ``added_mass`` is kept when the new divisions have the same points, else a
+    ``ValueError`` (its per-point shape depends on them) names ``what``.
+    """
+    links = []
+    for i, link in enumerate(linkage.links, start=1):
+        if not isinstance(link, SoftLink):
+            links.append(link)
+            continue
+        divs = [fn(i, k, div) for k, div in enumerate(link.divisions)]
+        links.append(
+            SoftLink(divs, link.material, link.joint, link.g_i, link.g_f, link.color)
+        )
+    kw = dict(
+        parents=linkage.parents,
+        placements=linkage.placements,
+        gravity=linkage.gravity,
+        point_wrenches=linkage.point_wrenches,
+        custom_wrench=linkage.custom_wrench,
+        actuators=linkage.actuators,
+        closed_loops=linkage.closed_loops,
+        custom_actuation=linkage.custom_actuation,
+        actuator_strength=linkage.actuator_strength,
+        baumgarte_time=linkage.baumgarte_time,
+    )
+    out = Linkage(links, **kw)
+    if linkage.added_mass is None:
+        return out
+    if out.n_points != linkage.n_points:
+        raise ValueError(
+            f"{what}: this linkage has added_mass, whose shape depends on the points, "
+            f"and the new divisions have {out.n_points} points instead of "
+            f"{linkage.n_points}; rebuild it by hand (or keep the points: give "
+            "n_gauss)."
+        )
+    return Linkage(links, **kw, added_mass=linkage.added_mass)
+
+
+def _class_points(order: int) -> int:
+    """The default number of points of a division of basis order ``order``."""
+    return max(8, 2 * order + 4)
+
+
+def size_class(
+    linkage: Linkage,
+    order: int,
+    modes=None,
+    n_gauss: int | None = None,
+) -> Linkage:
+    """``linkage`` padded to the size class of ``order`` (see the module docstring).
+
+    Models padded to the same class share their compiled programs: a new order
+    (up to ``order``) or, with ``modes`` given, a new set of modes, reuses them.
+    Their coordinates are the class's (``q`` is longer, the padding stays exactly
+    0): :func:`active_coordinates` gives the model's own ones.
+
+    Args:
+        linkage: a linkage whose soft divisions have Legendre or monomial bases.
+        order: the class order, >= every division's own orders.
+        modes: six 0/1 flags of the class's modes (every division gets them; its
+            own modes must be among them), or None to keep each division's own
+            modes (then only orders vary within the class).
+        n_gauss: interior points of every padded division; default the larger of
+            the division's own and the default for ``order`` (``max(8, 2 order +
+            4)``), so that every order up to ``order`` lands on the same points.
+
+    Returns:
+        The padded :class:`~sorojax.Linkage`.
+
+    Raises:
+        ValueError: a division with a custom or already padded basis, an order above
+            ``order``, a mode outside ``modes``, or a bad ``order``/``n_gauss``.
+    """
+    if not isinstance(order, int | np.integer) or order < 0:
+        raise ValueError(f"size_class: order = {order!r}: give an integer >= 0.")
+    if n_gauss is not None and (not isinstance(n_gauss, int | np.integer) or n_gauss < 1):
+        raise ValueError(f"size_class: n_gauss = {n_gauss!r}: give an integer >= 1.")
+    if modes is not None:
+        modes = tuple(int(bool(m)) for m in modes)
+        if len(modes) != 6:
+            raise ValueError(
+                f"size_class: modes has {len(modes)} entries: give six 0/1 flags for "
+                f"{MODE_NAMES}, or None to keep each division's modes."
+            )
+
+    def pad(i: int, k: int, div: Division) -> Division:
+        b = div.basis
+        where = f"link {i} division {k + 1}"
+        if not isinstance(b, AbstractPolynomialBasis):
+            raise ValueError(
+                f"size_class: {where} has a {type(b).__name__}; only Legendre and "
+                "monomial bases pad (their families are nested: the first o + 1 "
+                "polynomials of order `order` are those of order o)."
+            )
+        cm = b.modes if modes is None else modes
+        cols = []
+        for name, m, o, c in zip(MODE_NAMES, b.modes, b.orders, cm, strict=True):
+            if m and not c:
+                raise ValueError(
+                    f"size_class: {where} has mode {name} on, but the class's modes "
+                    f"{cm} have it off: give modes with {name} on."
+                )
+            if m and o > order:
+                raise ValueError(
+                    f"size_class: {where} has {name} at order {o} > the class order "
+                    f"{order}: give order >= {o}."
+                )
+            if c:
+                cols += [1.0 if m and j <= o else 0.0 for j in range(order + 1)]
+        basis = PaddedBasis(type(b)(cm, order), jnp.asarray(np.asarray(cols)))
+        ng = n_gauss if n_gauss is not None else max(div.n_gauss, _class_points(order))
+        return Division(div.length, div.section, basis, ng, div.xi_ref)
+
+    return replace_divisions(linkage, pad, "size_class")
+
+
+def active_coordinates(linkage: Linkage) -> np.ndarray:
+    """Indices into ``q`` of the model's own coordinates, in the model's order.
+
+    For a padded linkage (:func:`size_class`), ``q[active_coordinates(padded)]`` is
+    the unpadded model's ``q``; for any other linkage, every index.
+    """
+    lay = linkage.layout
+    out = []
+    for link, ll in zip(linkage.links, lay.links, strict=True):
+        out.extend(range(ll.joint_offset, ll.joint_offset + ll.joint_n_dof))
+        if not isinstance(link, SoftLink):
+            continue
+        for div, dl in zip(link.divisions, ll.divisions, strict=True):
+            b = div.basis
+            if isinstance(b, PaddedBasis):
+                act = np.asarray(b.active)
+                out.extend(dl.offset + int(j) for j in np.flatnonzero(act > 0.5))
+            else:
+                out.extend(range(dl.offset, dl.offset + dl.n_dof))
+    return np.asarray(out, dtype=int)
