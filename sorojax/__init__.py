@@ -191,15 +191,15 @@ if TYPE_CHECKING:  # static analysers see the names as plain imports
     from .model import Linkage as Linkage
     from .model import Material as Material
     from .model import MonomialBasis as MonomialBasis
-    from .model import PaddedBasis as PaddedBasis
     from .model import ObliquePath as ObliquePath
+    from .model import PaddedBasis as PaddedBasis
     from .model import PointWrench as PointWrench
     from .model import RectangularSection as RectangularSection
     from .model import RigidLink as RigidLink
     from .model import SectionProperties as SectionProperties
     from .model import SoftLink as SoftLink
-    from .model import rectangle_torsion_constant as rectangle_torsion_constant
     from .model import active_coordinates as active_coordinates
+    from .model import rectangle_torsion_constant as rectangle_torsion_constant
     from .model import size_class as size_class
     from .model import sorosim_mechanics as sorosim_mechanics
     from .model import translation as translation

@@ -146,7 +146,9 @@ def test_padded_mass_and_stiffness():
         A, A_ref = np.asarray(fn(*args)), np.asarray(fn(*ref_args))
         assert np.abs(A[np.ix_(idx, idx)] - A_ref).max() <= 1e-12 * np.abs(A_ref).max()
         assert np.all(A[np.ix_(idx, rest)] == 0.0)
-        np.testing.assert_allclose(np.diag(A)[rest], np.mean(np.diag(A_ref)), rtol=1e-12)
+        np.testing.assert_allclose(
+            np.diag(A)[rest], np.mean(np.diag(A_ref)), rtol=1e-12
+        )
     assert np.linalg.eigvalsh(np.asarray(sj.mass_matrix(pad, q))).min() > 0.0
 
 
@@ -156,7 +158,9 @@ def test_active_coordinates_and_bad_classes():
     the division, the value and the fix named."""
     lk = _rod(2)
     np.testing.assert_array_equal(sj.active_coordinates(lk), np.arange(lk.n_dof))
-    with pytest.raises(ValueError, match="torsion at order 2 > the class order 1: give order >= 2"):
+    with pytest.raises(
+        ValueError, match="torsion at order 2 > the class order 1: give order >= 2"
+    ):
         sj.size_class(lk, 1)
     with pytest.raises(ValueError, match="mode torsion on.*give modes with torsion"):
         sj.size_class(lk, 3, modes=(0, 1, 1, 0, 0, 0))

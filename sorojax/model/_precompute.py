@@ -196,8 +196,9 @@ class LinkageData(eqx.Module):
 
 
 def lock_padding(A: Array, locked: Array | None) -> Array:
-    """``A`` (K, or a mass matrix) with its padded diagonal set to the mean of its
-    other diagonal entries (``A`` unchanged without padding).
+    """``A`` (K or M) with the mean of its own diagonal at the padded coordinates.
+
+    ``A`` is returned unchanged without padding (``locked`` None).
 
     The padded rows and columns of K and M are zero (their basis columns are), so
     the padded coordinates are decoupled; this gives each a stiffness and an inertia

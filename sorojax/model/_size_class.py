@@ -30,8 +30,10 @@ from ._linkage import Linkage
 def replace_divisions(
     linkage: Linkage, fn: Callable[[int, int, Division], Division], what: str
 ) -> Linkage:
-    """The same linkage with each soft division ``div`` replaced by ``fn(i, k, div)``
-    (1-based link ``i``, 0-based division ``k``); loads, actuators and loops kept.
+    """The same linkage with each soft division ``div`` replaced by ``fn(i, k, div)``.
+
+    ``i`` is the 1-based link, ``k`` the 0-based division; loads, actuators and
+    loops are kept.
 
     ``added_mass`` is kept when the new divisions have the same points, else a
     ``ValueError`` (its per-point shape depends on them) names ``what``.
@@ -107,7 +109,9 @@ def size_class(
     """
     if not isinstance(order, int | np.integer) or order < 0:
         raise ValueError(f"size_class: order = {order!r}: give an integer >= 0.")
-    if n_gauss is not None and (not isinstance(n_gauss, int | np.integer) or n_gauss < 1):
+    if n_gauss is not None and (
+        not isinstance(n_gauss, int | np.integer) or n_gauss < 1
+    ):
         raise ValueError(f"size_class: n_gauss = {n_gauss!r}: give an integer >= 1.")
     if modes is not None:
         modes = tuple(int(bool(m)) for m in modes)

@@ -125,6 +125,7 @@ def with_orders(
                 f"orders[{key!r}] = {o!r}: give six orders >= 0, or -1 for a mode "
                 f"off, in the order {MODE_NAMES}."
             )
+
     def change(i: int, k: int, div: Division) -> Division:
         if (i, k) not in orders:
             return div
