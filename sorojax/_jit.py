@@ -20,7 +20,8 @@ runs 3-7x slower (`benchmarks/latency.py`). So by default a top-level sorojax pr
 is first compiled at -O0 and compiled again at XLA's default level only once its
 calls have run for as long as that first compile took ("ski rental": a program
 called once or a few times pays half the compile; a hot one at most one extra -O0
-compile and as much time again in slow calls). The two tiers compute the same HLO
+compile and as much time again in slow calls; the second compile runs in a worker
+thread while the calls go on at -O0). The two tiers compute the same HLO
 program; results agree to rounding (~1e-15 relative), not bit for bit: set
 ``SOROJAX_COMPILE=full`` for bit-for-bit repeatable runs.
 """
@@ -125,9 +126,14 @@ def _signature(args, kwargs) -> tuple:
 
 
 class _TieredProgram:
-    """One program of a tiered function: -O0 first, XLA's default level once hot."""
+    """One program of a tiered function: -O0 first, XLA's default level once hot.
 
-    __slots__ = ("options", "lowered", "fast", "full", "budget", "spent")
+    The second compile runs in a worker thread (:data:`_PROMOTE_THREAD`): calls
+    keep the -O0 program until it is done, so on a machine with a core to spare
+    the compile is off the caller's path.
+    """
+
+    __slots__ = ("options", "lowered", "fast", "full", "budget", "spent", "promoting")
 
     def __init__(self, lower: Callable, options: dict[str, Any]):
         self.options = options  # of the second compile
@@ -142,14 +148,16 @@ class _TieredProgram:
         self.budget = max(time.perf_counter() - middle, middle - start)
         self.spent = 0.0
         self.full = None
+        self.promoting: concurrent.futures.Future | None = None
 
     def __call__(self, promote: bool, args, kwargs):
+        if self.promoting is not None and self.promoting.done():
+            self.full = self.promoting.result()  # a failed compile raises here
+            self.promoting = self.lowered = None
         if self.full is not None:
             return self.full(*args, **kwargs)
-        if promote and self.spent >= self.budget:
-            self.full = self.lowered.compile(self.options)
-            self.lowered = None
-            return self.full(*args, **kwargs)
+        if promote and self.promoting is None and self.spent >= self.budget:
+            self.promoting = _PROMOTE_THREAD.submit(self.lowered.compile, self.options)
         # count the compiled code's run time only: equinox's argument handling around
         # it (~0.1 ms) would not get faster at the default level
         fast = self.fast
@@ -243,8 +251,11 @@ def jit(fun: Callable, *, tiered: bool = True) -> Callable:
     return call
 
 
-# One worker thread for programs compiled ahead (started on the first submit).
+# One worker thread for programs compiled ahead (started on the first submit), and
+# one for the second tier's compiles (so that a program compiled ahead never waits
+# behind a long promotion).
 _COMPILE_THREAD = concurrent.futures.ThreadPoolExecutor(1, "sorojax-compile-ahead")
+_PROMOTE_THREAD = concurrent.futures.ThreadPoolExecutor(1, "sorojax-promote")
 
 
 def _in_tiers(mode: str) -> bool:

@@ -206,8 +206,9 @@ def test_tiered_program_starts_at_O0_and_is_compiled_again_once_hot(tiered):
     """First call: one trace, compiled with ``xla_backend_optimization_level = 0``.
     The program is recompiled at the default level (sorojax's options without the
     -O0 entry) only once its calls have run for as long as its first compile took
-    (the budget; set to zero here to trigger it); from then on the -O0 program is
-    not used. Same function, same values at both tiers."""
+    (the budget; set to zero here to trigger it), in a worker thread while calls
+    go on at -O0; once it is done the -O0 program is not used. Same function, same
+    values at both tiers."""
     f = sjit.jit(lambda x, n: jnp.cumsum(jnp.sin(x) * n))
     x = jnp.linspace(0.0, 1.0, 5)
     first = f(x, 2)
@@ -215,10 +216,15 @@ def test_tiered_program_starts_at_O0_and_is_compiled_again_once_hot(tiered):
     (program,) = f.programs.values()
     assert program.full is None and program.budget > 0.0 and program.spent > 0.0
     program.budget = program.spent  # as if its calls had run as long as the compile
-    second = f(x, 2)
+    second = f(x, 2)  # starts the second compile in a thread, runs the -O0 program
+    assert program.promoting is not None and program.full is None
+    program.promoting.result()
     assert tiered[1:] == [sj.compiler_options()]
+    third = f(x, 2)  # the compile is done: from now on the promoted program
     assert program.full is not None and program.lowered is None
-    np.testing.assert_allclose(first, second, rtol=1e-15)  # both -O0 in this suite
+    assert program.promoting is None
+    np.testing.assert_allclose(first, second, rtol=0.0)  # the same -O0 program
+    np.testing.assert_allclose(first, third, rtol=1e-15)  # both -O0 in this suite
     f(x + 1.0, 2)  # new values: the same (promoted) program, no compile
     f(np.asarray(x), 2)  # a NumPy array is the same argument type to JAX
     assert len(tiered) == 2 and len(f.programs) == 1
