@@ -183,8 +183,9 @@ def child_tiered(name, repeats):
     """The same target through ``sorojax.jit`` in the tiered compile mode.
 
     One wall time for the first call (trace, lower, -O0 compile, run), then calls
-    until the program is compiled at XLA's default level (the call that compiles it
-    timed on its own), then the median of warm calls. Prints one JSON line.
+    until the program is compiled at XLA's default level (in a worker thread while
+    the -O0 calls go on: its compile time as the thread timed it), then the median
+    of warm calls. Prints one JSON line.
     """
     import os
 
@@ -201,7 +202,10 @@ def child_tiered(name, repeats):
         jax.block_until_ready(jitted(*args))
         slow.append(time.perf_counter() - t)
         calls += 1
-    promoting = slow.pop() if program.full is not None else float("nan")
+    # the second compile runs in a worker thread while the -O0 calls go on; the
+    # call that finds it done switches to it (its time is a warm call's)
+    slow.pop() if program.full is not None else None
+    promoting = program.promote_s if program.promote_s is not None else float("nan")
     warm = []
     for _ in range(repeats):
         t = time.perf_counter()
@@ -217,7 +221,7 @@ def child_tiered(name, repeats):
                 "fast_compile_s": program.budget,
                 "fast_calls_after_first": len(slow),
                 "fast_call_median_s": statistics.median(slow) if slow else None,
-                "promoting_call_s": promoting,
+                "promote_compile_s": promoting,
                 "warm_median_s": statistics.median(warm),
             }
         )
@@ -286,8 +290,8 @@ def main(argv=None):
         print(
             f"{'  tiered':16s} first call {r['first_call_total_s']:.2f}s (-O0 compile "
             f"{r['fast_compile_s']:.2f}s), {r['fast_calls_after_first']} more -O0 "
-            f"calls, then {r['promoting_call_s']:.2f}s to compile at the default "
-            f"level; warm {1e3 * r['warm_median_s']:.2f}ms",
+            f"calls (the default level compiling in {r['promote_compile_s']:.2f}s in a "
+            f"thread); warm {1e3 * r['warm_median_s']:.2f}ms",
             flush=True,
         )
     RESULTS_DIR.mkdir(exist_ok=True)
