@@ -17,7 +17,9 @@ Scenes:
 * ``statics``: the 3D cantilever of tests/test_size_class.py (0.5 m, E 1 MPa,
   torsion and both bendings, gravity and a tip force), orders 1..6, class 6;
 * ``dynamics``: 0.5 s of the damped free-fall rod (``free_fall_rod(order,
-  eta=1e4)``), orders 1..4, class 4, default solver.
+  eta=1e4)``), orders 1..4, class 4, default solver;
+* ``divisions``: the statics cantilever at order 2 with 1..4 divisions, class of
+  order 2 and 4 divisions (the "order" column holds the number of divisions).
 
 Run::
 
@@ -35,23 +37,28 @@ import time
 
 from _common import ROOT, environment
 
-ORDERS = {"statics": (1, 2, 3, 4, 5, 6), "dynamics": (1, 2, 3, 4)}
+ORDERS = {
+    "statics": (1, 2, 3, 4, 5, 6),
+    "dynamics": (1, 2, 3, 4),
+    "divisions": (1, 2, 3, 4),  # numbers of divisions (order 2), not orders
+}
 
 
-def _scene(scene, order):
+def _scene(scene, value):
     from sorojax import scenes
 
-    if scene == "statics":
-        return scenes.cantilever(
-            length=0.5,
-            radius=0.01,
-            E=1e6,
-            modes=(1, 1, 1, 0, 0, 0),
-            order=order,
-            gravity=(0.0, 0.0, -9.81),
-            tip_wrench=[0.0, 0.0, 0.0, 0.0, 0.2, 0.05],
-        )
-    return scenes.free_fall_rod(order, eta=1e4)
+    if scene == "dynamics":
+        return scenes.free_fall_rod(value, eta=1e4)
+    return scenes.cantilever(
+        length=0.5,
+        radius=0.01,
+        E=1e6,
+        modes=(1, 1, 1, 0, 0, 0),
+        order=value if scene == "statics" else 2,
+        n_divisions=1 if scene == "statics" else value,
+        gravity=(0.0, 0.0, -9.81),
+        tip_wrench=[0.0, 0.0, 0.0, 0.0, 0.2, 0.05],
+    )
 
 
 def child(scene, padded, mode, repeats):
@@ -72,10 +79,12 @@ def child(scene, padded, mode, repeats):
     t_sweep = time.perf_counter()
     for order in ORDERS[scene]:
         lk = _scene(scene, order)
-        if padded:
+        if padded and scene == "divisions":
+            lk = sj.size_class(lk, 2, divisions=top)
+        elif padded:
             lk = sj.size_class(lk, top)
 
-        if scene == "statics":
+        if scene != "dynamics":
 
             def run(lk=lk):
                 sol = sj.solve_statics(lk)

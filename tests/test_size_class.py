@@ -130,6 +130,41 @@ def test_dynamics_of_a_padded_model_is_the_models_motion(compiles):
         assert scale > 0.1
 
 
+def test_a_divisions_class_shares_one_program_across_division_counts(compiles):
+    """One and two divisions padded to three (empty divisions of length 0 at the
+    tip, every coefficient off): one statics program for both; equilibria and tip
+    poses equal the unpadded models' (1e-12), padding exactly 0; 0.05 s of
+    constant-step Rosenbrock dynamics equal too (1e-12: the same equations; with
+    adaptive steps, round-off of the longer sums moves the steps, so trajectories
+    agree to the tolerance only)."""
+    models = [
+        cantilever(0.5, 0.01, 1e6, (1, 1, 1, 0, 0, 0), 2, n, 1000.0, GRAVITY, WRENCH)
+        for n in (1, 2)
+    ]
+    padded, n_after_first = [], None
+    for lk in models:
+        pad = sj.size_class(lk, 2, divisions=3)
+        assert len(pad.links[0].divisions) == 3 and pad.n_dof == 27
+        q = np.asarray(sj.solve_statics(pad).q)
+        if n_after_first is None:
+            n_after_first = len(compiles)
+        assert np.all(_padding(pad, q) == 0.0)
+        padded.append((pad, q))
+    assert len(compiles) == n_after_first, "another division count compiled again"
+    steps = dict(solver="ros34pw2", adaptive=False, dt0=1e-3, n_save=5)
+    for lk, (pad, q) in zip(models, padded, strict=True):
+        ref = np.asarray(sj.solve_statics(lk).q)
+        idx = sj.active_coordinates(pad)
+        assert np.abs(q[idx] - ref).max() <= 1e-12 * np.abs(ref).max()
+        np.testing.assert_allclose(
+            sj.tip_pose(pad, q), sj.tip_pose(lk, ref), rtol=0.0, atol=1e-12
+        )
+        tr, tr_ref = sj.simulate(pad, 0.05, **steps), sj.simulate(lk, 0.05, **steps)
+        scale = np.abs(np.asarray(tr_ref.q)).max()
+        err = np.abs(np.asarray(tr.q)[:, idx] - np.asarray(tr_ref.q)).max()
+        assert err <= 1e-12 * scale and scale > 0.1
+
+
 def test_padded_mass_and_stiffness():
     """The padded model's M and K restricted to its own coordinates are the unpadded
     model's (1e-12); the padding is decoupled (zero off-diagonal blocks) with the
@@ -166,6 +201,9 @@ def test_active_coordinates_and_bad_classes():
         sj.size_class(lk, 3, modes=(0, 1, 1, 0, 0, 0))
     with pytest.raises(ValueError, match="order = -1"):
         sj.size_class(lk, -1)
+    two = cantilever(order=1, n_divisions=2)
+    with pytest.raises(ValueError, match="link 1 has 2 divisions > divisions = 1"):
+        sj.size_class(two, 1, divisions=1)
     custom = sj.Linkage(
         sj.SoftLink(
             [sj.Division(0.5, basis=sj.CustomBasis(lambda x: jnp.eye(6)[:, :1], 1))],

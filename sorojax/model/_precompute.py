@@ -246,7 +246,12 @@ def precompute(linkage: Linkage) -> LinkageData:
             G = mat.G
             for div, dl in zip(link.divisions, ll.divisions, strict=True):
                 L = div.length
-                S = _scale_rows(L)[None, :, None]
+                if isinstance(div.basis, PaddedBasis):
+                    # a size class's empty division (length 0, every column off)
+                    # scales by 1 instead of 1/0 (its basis is zero: 0 * inf = nan)
+                    S = _scale_rows(jnp.where(L > 0, L, 1.0))[None, :, None]
+                else:
+                    S = _scale_rows(L)[None, :, None]
                 X1 = dl.X1
                 Xz = np.stack([X1[:-1] + (X1[1:] - X1[:-1]) * z for z in nodes], 1)
                 n_steps = len(X1) - 1

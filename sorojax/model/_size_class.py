@@ -12,9 +12,14 @@ on and off, compiles each program once.
 The padded coordinates are decoupled and held at zero (their basis columns are
 zero; ``K`` and ``M`` give them the mean diagonal stiffness and inertia of the
 other coordinates), so a padded model's equilibria and motions are those of the
-model at the class's points and Magnus order. What recompiles: the class itself
-(its order, its modes, its number of points) and the number of divisions, links or
-loads (each changes the number of points or coordinates).
+model at the class's points and Magnus order. With ``divisions``, every soft link
+is also filled up to a number of divisions with empty ones (length 0, every
+coefficient off): models with fewer divisions then share the programs as well
+(their equations are the same; in adaptive dynamics the round-off of the longer
+sums can move the steps, so trajectories agree to the tolerance). What
+recompiles: the class itself (its order, modes, points and divisions), another
+number of links or loads, and a load or cable anchor moved to another division
+or point (each changes the points or coordinates).
 """
 
 from collections.abc import Callable
@@ -82,6 +87,7 @@ def size_class(
     order: int,
     modes=None,
     n_gauss: int | None = None,
+    divisions: int | None = None,
 ) -> Linkage:
     """``linkage`` padded to the size class of ``order`` (see the module docstring).
 
@@ -99,13 +105,18 @@ def size_class(
         n_gauss: interior points of every padded division; default the larger of
             the division's own and the default for ``order`` (``max(8, 2 order +
             4)``), so that every order up to ``order`` lands on the same points.
+        divisions: pad every soft link to this many divisions with empty ones
+            (length 0, every coefficient off, after the link's own), so that
+            models with up to ``divisions`` divisions per link share the
+            programs too; None keeps each link's own number.
 
     Returns:
         The padded :class:`~sorojax.Linkage`.
 
     Raises:
         ValueError: a division with a custom or already padded basis, an order above
-            ``order``, a mode outside ``modes``, or a bad ``order``/``n_gauss``.
+            ``order``, a mode outside ``modes``, a link with more than
+            ``divisions`` divisions, or a bad ``order``/``n_gauss``/``divisions``.
     """
     if not isinstance(order, int | np.integer) or order < 0:
         raise ValueError(f"size_class: order = {order!r}: give an integer >= 0.")
@@ -113,6 +124,12 @@ def size_class(
         not isinstance(n_gauss, int | np.integer) or n_gauss < 1
     ):
         raise ValueError(f"size_class: n_gauss = {n_gauss!r}: give an integer >= 1.")
+    if divisions is not None and (
+        not isinstance(divisions, int | np.integer) or divisions < 1
+    ):
+        raise ValueError(
+            f"size_class: divisions = {divisions!r}: give an integer >= 1, or None."
+        )
     if modes is not None:
         modes = tuple(int(bool(m)) for m in modes)
         if len(modes) != 6:
@@ -149,7 +166,50 @@ def size_class(
         ng = n_gauss if n_gauss is not None else max(div.n_gauss, _class_points(order))
         return Division(div.length, div.section, basis, ng, div.xi_ref)
 
-    return replace_divisions(linkage, pad, "size_class")
+    padded = replace_divisions(linkage, pad, "size_class")
+    if divisions is None:
+        return padded
+    return _pad_divisions(padded, divisions)
+
+
+def _pad_divisions(linkage: Linkage, divisions: int) -> Linkage:
+    """Every soft link of a padded linkage filled up to ``divisions`` divisions.
+
+    The empty divisions copy the link's last one (section, class basis, points)
+    with length 0 and every column off: their Magnus steps are the identity, their
+    weights (mass, stiffness, loads) zero, their coordinates locked at zero, and
+    their points sit at the link's tip.
+    """
+    import equinox as eqx
+
+    def empty(div: Division) -> Division:
+        b = div.basis
+        off = PaddedBasis(b.basis, jnp.zeros_like(b.active))
+        return eqx.tree_at(
+            lambda d: (d.length, d.basis), div, (jnp.zeros_like(div.length), off)
+        )
+
+    links = list(linkage.links)
+    for i, link in enumerate(links, start=1):
+        if not isinstance(link, SoftLink):
+            continue
+        n = len(link.divisions)
+        if n < divisions and linkage.added_mass is not None:
+            raise ValueError(
+                "size_class: this linkage has added_mass, whose shape depends on the "
+                f"points, and padding link {i} to {divisions} divisions adds points; "
+                "leave divisions None."
+            )
+        if n > divisions:
+            raise ValueError(
+                f"size_class: link {i} has {n} divisions > divisions = {divisions}: "
+                f"give divisions >= {n}."
+            )
+        extra = tuple(empty(link.divisions[-1]) for _ in range(divisions - n))
+        links[i - 1] = eqx.tree_at(
+            lambda lk: lk.divisions, link, link.divisions + extra
+        )
+    return eqx.tree_at(lambda lk: lk.links, linkage, tuple(links))
 
 
 def active_coordinates(linkage: Linkage) -> np.ndarray:
