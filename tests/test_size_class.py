@@ -54,26 +54,38 @@ def _padding(padded, q):
     return np.delete(q, sj.active_coordinates(padded), axis=-1)
 
 
+def _solve_padded(models, pad, compiles, what):
+    """``[(padded, q)]``: each model padded by ``pad`` and solved; asserts that no
+    solve after the first compiled and that every padding coordinate is 0."""
+    out, n_after_first = [], None
+    for lk in models:
+        padded = pad(lk)
+        sol = sj.solve_statics(padded)
+        assert sol.result == sj.RESULTS.successful
+        if n_after_first is None:
+            n_after_first = len(compiles)
+        assert np.all(_padding(padded, sol.q) == 0.0)
+        out.append((padded, np.asarray(sol.q)))
+    assert len(compiles) == n_after_first, f"another {what} compiled again"
+    return out
+
+
 def test_statics_of_every_order_in_a_class_is_the_models_and_compiles_once(compiles):
     """Orders 1, 2, 3 (torsion and both bendings) padded to class 3: one statics
     program for the three (no compile after the first padded solve); each padded
     equilibrium is the unpadded model's on the class's 10 points to 1e-12 (same
     arithmetic up to zero columns), its padding exactly 0. The padded models come
     from models with their default points (8, 8, 10): the class fixes them."""
-    padded_q = []
-    n_after_first = None
-    for order in (1, 2, 3):
-        pad = sj.size_class(_rod(order), CLASS)
+    padded = _solve_padded(
+        [_rod(order) for order in (1, 2, 3)],
+        lambda lk: sj.size_class(lk, CLASS),
+        compiles,
+        "order",
+    )
+    for pad, _ in padded:
         assert pad.n_dof == 3 * (CLASS + 1)
         assert pad.links[0].divisions[0].n_gauss == POINTS
-        sol = sj.solve_statics(pad)
-        assert sol.result == sj.RESULTS.successful
-        padded_q.append(np.asarray(sol.q))
-        if n_after_first is None:
-            n_after_first = len(compiles)
-        assert np.all(_padding(pad, sol.q) == 0.0)
-    assert len(compiles) == n_after_first, "a padded order compiled again"
-    for order, q_pad in zip((1, 2, 3), padded_q, strict=True):
+    for order, (_, q_pad) in zip((1, 2, 3), padded, strict=True):
         ref_model = _rod(order, n_gauss=POINTS)
         ref = np.asarray(sj.solve_statics(ref_model).q)
         idx = sj.active_coordinates(sj.size_class(ref_model, CLASS))
@@ -86,16 +98,13 @@ def test_a_modes_class_shares_one_program_across_modes(compiles):
     model of every mode at order 1 share one program; each equals its unpadded model
     on the same points (1e-12), its padding exactly 0."""
     cases = [(2, (0, 1, 1, 0, 0, 0)), (1, (1, 1, 1, 1, 1, 1))]
-    padded, n_after_first = [], None
-    for order, modes in cases:
-        pad = sj.size_class(_rod(order, modes), 2, modes=(1,) * 6)
-        assert pad.n_dof == 6 * 3
-        q = np.asarray(sj.solve_statics(pad).q)
-        if n_after_first is None:
-            n_after_first = len(compiles)
-        assert np.all(_padding(pad, q) == 0.0)
-        padded.append((pad, q))
-    assert len(compiles) == n_after_first, "another set of modes compiled again"
+    padded = _solve_padded(
+        [_rod(order, modes) for order, modes in cases],
+        lambda lk: sj.size_class(lk, 2, modes=(1,) * 6),
+        compiles,
+        "set of modes",
+    )
+    assert all(pad.n_dof == 6 * 3 for pad, _ in padded)
     for (order, modes), (pad, q) in zip(cases, padded, strict=True):
         ref = np.asarray(sj.solve_statics(_rod(order, modes, n_gauss=8)).q)
         err = np.abs(q[sj.active_coordinates(pad)] - ref).max()
@@ -141,16 +150,11 @@ def test_a_divisions_class_shares_one_program_across_division_counts(compiles):
         cantilever(0.5, 0.01, 1e6, (1, 1, 1, 0, 0, 0), 2, n, 1000.0, GRAVITY, WRENCH)
         for n in (1, 2)
     ]
-    padded, n_after_first = [], None
-    for lk in models:
-        pad = sj.size_class(lk, 2, divisions=3)
+    padded = _solve_padded(
+        models, lambda lk: sj.size_class(lk, 2, divisions=3), compiles, "division count"
+    )
+    for pad, _ in padded:
         assert len(pad.links[0].divisions) == 3 and pad.n_dof == 27
-        q = np.asarray(sj.solve_statics(pad).q)
-        if n_after_first is None:
-            n_after_first = len(compiles)
-        assert np.all(_padding(pad, q) == 0.0)
-        padded.append((pad, q))
-    assert len(compiles) == n_after_first, "another division count compiled again"
     steps = dict(solver="ros34pw2", adaptive=False, dt0=1e-3, n_save=5)
     for lk, (pad, q) in zip(models, padded, strict=True):
         ref = np.asarray(sj.solve_statics(lk).q)
