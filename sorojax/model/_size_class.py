@@ -24,6 +24,7 @@ or point (each changes the points or coordinates).
 
 from collections.abc import Callable
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
@@ -180,14 +181,12 @@ def _pad_divisions(linkage: Linkage, divisions: int) -> Linkage:
     weights (mass, stiffness, loads) zero, their coordinates locked at zero, and
     their points sit at the link's tip.
     """
-    import equinox as eqx
 
     def empty(div: Division) -> Division:
         b = div.basis
-        off = PaddedBasis(b.basis, jnp.zeros_like(b.active))
-        return eqx.tree_at(
-            lambda d: (d.length, d.basis), div, (jnp.zeros_like(div.length), off)
-        )
+        # host arrays (jnp.zeros would compile a program per shape)
+        off = PaddedBasis(b.basis, jnp.asarray(np.zeros(b.active.shape)))
+        return eqx.tree_at(lambda d: (d.length, d.basis), div, (jnp.asarray(0.0), off))
 
     links = list(linkage.links)
     for i, link in enumerate(links, start=1):
@@ -216,7 +215,9 @@ def active_coordinates(linkage: Linkage) -> np.ndarray:
     """Indices into ``q`` of the model's own coordinates, in the model's order.
 
     For a padded linkage (:func:`size_class`), ``q[active_coordinates(padded)]`` is
-    the unpadded model's ``q``; for any other linkage, every index.
+    the unpadded model's ``q``, and the model's ``q`` goes the other way as
+    ``np.zeros(padded.n_dof)`` with those entries set (e.g. an initial shape); for
+    any other linkage, every index.
     """
     lay = linkage.layout
     out = []
