@@ -86,15 +86,17 @@ def test_import_sorojax_does_not_import_matplotlib():
 
 def test_import_is_lazy_and_every_public_name_resolves():
     """``import sorojax`` imports neither diffrax nor optimistix (names load on
-    first use: a statics script never waits for diffrax); every name in ``__all__``
+    first use: a statics script, plots and ``sorojax.io`` included, never waits for
+    diffrax, ~0.4 s); every name in ``__all__``
     and every submodule then resolves (``kinematics`` is the function, not the
     submodule of that name), and an unknown name raises AttributeError."""
     code = (
         "import sys, sorojax as sj\n"
         "assert not {'diffrax', 'optimistix', 'lineax'} & set(sys.modules)\n"
         "assert callable(sj.kinematics)\n"
-        "sj.solve_statics\n"
+        "sj.solve_statics, sj.viz.plot_configuration, sj.io.__name__\n"
         "assert 'diffrax' not in sys.modules\n"
+        "assert sj.io.load_trajectory is sj.load_trajectory\n"
         "missing = [n for n in sj.__all__ if getattr(sj, n, None) is None]\n"
         "assert not missing, missing\n"
         "assert sj.integrate.simulate is sj.simulate and 'simulate' in dir(sj)\n"
