@@ -299,7 +299,7 @@ def _own_rms_norm(norm, locked):
     ``sqrt(n_own / n)``: larger steps than the unpadded model takes at the same
     tolerances. Rescaled, the steps and the trajectory are the unpadded model's.
     """
-    n_own = 2.0 * jnp.sum(1.0 - locked)
+    n_own = jnp.maximum(2.0 * jnp.sum(1.0 - locked), 1.0)
 
     def own(x):
         n = sum(leaf.size for leaf in jax.tree_util.tree_leaves(x))

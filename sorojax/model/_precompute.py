@@ -210,7 +210,8 @@ def lock_padding(A: Array, locked: Array | None) -> Array:
         return A
     free = 1.0 - locked
     mean = jnp.sum(jnp.diag(A) * free) / jnp.maximum(jnp.sum(free), 1.0)
-    return A + jnp.diag(locked * mean)
+    # 1 where the others have none (e.g. only free joints): never a zero pivot
+    return A + jnp.diag(locked * jnp.where(mean > 0, mean, 1.0))
 
 
 def _scale_rows(L) -> Array:
