@@ -14,6 +14,7 @@ import pytest
 
 import sorojax as sj
 from sorojax import _jit as sjit
+from sorojax._mechanisms import cable_manipulator
 from sorojax.scenes import cantilever, free_fall_q0, free_fall_rod
 
 CLASS = 3  # below the 6th-order Magnus threshold (order 4), like orders 1-3
@@ -167,6 +168,22 @@ def test_a_divisions_class_shares_one_program_across_division_counts(compiles):
         scale = np.abs(np.asarray(tr_ref.q)).max()
         err = np.abs(np.asarray(tr.q)[:, idx] - np.asarray(tr_ref.q)).max()
         assert err <= 1e-12 * scale and scale > 0.1
+
+
+def test_empty_divisions_carry_no_cable_load():
+    """The four-cable arm (cables spanning every division, oblique paths) padded
+    from 2 to 3 divisions and from order 1 to 2: the empty division adds no cable
+    length, force or weight, so the equilibrium's tip pose under tensions equals
+    the unpadded arm's on the same points (1e-12)."""
+    arm = cable_manipulator(order=1, n_gauss=8)
+    tensions = jnp.array([2.0, 0.5, 1.0, 0.0])
+    ref = sj.solve_statics(arm, u=tensions)
+    pad = sj.size_class(arm, 2, n_gauss=8, divisions=3)
+    sol = sj.solve_statics(pad, u=tensions)
+    assert np.all(_padding(pad, sol.q) == 0.0)
+    g, g_ref = sj.tip_pose(pad, sol.q), sj.tip_pose(arm, ref.q)
+    np.testing.assert_allclose(g, g_ref, rtol=0.0, atol=1e-12)
+    assert np.abs(np.asarray(g_ref)[:2, 3]).max() > 0.01  # the cables bend it
 
 
 def test_padded_mass_and_stiffness():
