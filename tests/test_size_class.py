@@ -8,6 +8,7 @@ exactly zero; the class's structure does not depend on the model's own orders or
 modes, so one compiled program serves them all (counted at the compile call).
 """
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -76,7 +77,9 @@ def test_statics_of_every_order_in_a_class_is_the_models_and_compiles_once(compi
     program for the three (no compile after the first padded solve); each padded
     equilibrium is the unpadded model's on the class's 10 points to 1e-12 (same
     arithmetic up to zero columns), its padding exactly 0. The padded models come
-    from models with their default points (8, 8, 10): the class fixes them."""
+    from models with their default points (8, 8, 10): the class fixes them. Being
+    one structure, they stack into one pytree: a vmapped solve gives the same
+    equilibria (1e-12)."""
     padded = _solve_padded(
         [_rod(order) for order in (1, 2, 3)],
         lambda lk: sj.size_class(lk, CLASS),
@@ -86,6 +89,12 @@ def test_statics_of_every_order_in_a_class_is_the_models_and_compiles_once(compi
     for pad, _ in padded:
         assert pad.n_dof == 3 * (CLASS + 1)
         assert pad.links[0].divisions[0].n_gauss == POINTS
+    # one class, one pytree structure: the models stack, and one vmapped solve
+    # gives every order's equilibrium (a convergence study in one program)
+    stacked = jax.tree.map(lambda *x: jnp.stack(x), *(pad for pad, _ in padded))
+    qs = jax.vmap(lambda lk: sj.solve_statics(lk, throw=False).q)(stacked)
+    for (_, q_pad), q_batch in zip(padded, np.asarray(qs), strict=True):
+        np.testing.assert_allclose(q_batch, q_pad, rtol=0.0, atol=1e-12)
     for order, (_, q_pad) in zip((1, 2, 3), padded, strict=True):
         ref_model = _rod(order, n_gauss=POINTS)
         ref = np.asarray(sj.solve_statics(ref_model).q)
@@ -144,7 +153,8 @@ def test_a_divisions_class_shares_one_program_across_division_counts(compiles):
     """One and two divisions padded to three (empty divisions of length 0 at the
     tip, every coefficient off): one statics program for both; equilibria and tip
     poses equal the unpadded models' (1e-12), padding exactly 0; 0.05 s of
-    constant-step Rosenbrock dynamics equal too (1e-12: the same equations; with
+    constant-step Rosenbrock dynamics of the one-division rod with two empty
+    divisions equal too (1e-12: the same equations; with
     adaptive steps, round-off of the longer sums moves the steps, so trajectories
     agree to the tolerance only)."""
     models = [
@@ -164,10 +174,14 @@ def test_a_divisions_class_shares_one_program_across_division_counts(compiles):
         np.testing.assert_allclose(
             sj.tip_pose(pad, q), sj.tip_pose(lk, ref), rtol=0.0, atol=1e-12
         )
-        tr, tr_ref = sj.simulate(pad, 0.05, **steps), sj.simulate(lk, 0.05, **steps)
-        scale = np.abs(np.asarray(tr_ref.q)).max()
-        err = np.abs(np.asarray(tr.q)[:, idx] - np.asarray(tr_ref.q)).max()
-        assert err <= 1e-12 * scale and scale > 0.1
+    # dynamics of the one-division rod with two empty divisions (the padded
+    # program is shared; each unpadded reference would be a compile of its own)
+    (lk, (pad, _)) = models[0], padded[0]
+    idx = sj.active_coordinates(pad)
+    tr, tr_ref = sj.simulate(pad, 0.05, **steps), sj.simulate(lk, 0.05, **steps)
+    scale = np.abs(np.asarray(tr_ref.q)).max()
+    err = np.abs(np.asarray(tr.q)[:, idx] - np.asarray(tr_ref.q)).max()
+    assert err <= 1e-12 * scale and scale > 0.1
 
 
 def test_empty_divisions_carry_no_cable_load():
