@@ -185,10 +185,11 @@ def timed_solve(linkage, repeats=5):
 def tier():
     """How the warm calls were compiled (see ``sorojax.compile_mode``).
 
-    In the default compile tiers a program called a few times stays at LLVM -O0
-    (3-5x slower than at XLA's default level).
+    In the default compile tiers a program called a few times runs at LLVM -O0
+    (3-5x slower than at XLA's default level) until its second compile, in a
+    worker thread, is done: the warm figures may be either tier's.
     """
-    return "" if sj.compile_mode() == "full" else " (-O0 tier)"
+    return "" if sj.compile_mode() == "full" else " (compile tiers: -O0 at first)"
 
 
 def converge(mechanics, tol=1e-4, max_angular=6):
