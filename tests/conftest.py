@@ -73,6 +73,7 @@ _HEAVY_FIRST = (
     "test_adequacy.py",  # 32
     "test_stability.py",  # 30
     "test_lie.py",  # 29
+    "test_size_class.py",  # 25
     "test_example_design.py",  # 22
     "test_jit.py",  # 19
 )

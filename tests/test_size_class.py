@@ -74,8 +74,8 @@ def _solve_padded(models, pad, compiles, what):
 
 def test_statics_of_every_order_in_a_class_is_the_models_and_compiles_once(compiles):
     """Orders 1, 2, 3 (torsion and both bendings) padded to class 3: one statics
-    program for the three (no compile after the first padded solve); each padded
-    equilibrium is the unpadded model's on the class's 10 points to 1e-12 (same
+    program for the three (no compile after the first padded solve); the padded
+    orders 1 and 2 are the unpadded models on the class's 10 points to 1e-12 (same
     arithmetic up to zero columns), its padding exactly 0. The padded models come
     from models with their default points (8, 8, 10): the class fixes them. Being
     one structure, they stack into one pytree: a vmapped solve gives the same
@@ -95,7 +95,8 @@ def test_statics_of_every_order_in_a_class_is_the_models_and_compiles_once(compi
     qs = jax.vmap(lambda lk: sj.solve_statics(lk, throw=False).q)(stacked)
     for (_, q_pad), q_batch in zip(padded, np.asarray(qs), strict=True):
         np.testing.assert_allclose(q_batch, q_pad, rtol=0.0, atol=1e-12)
-    for order, (_, q_pad) in zip((1, 2, 3), padded, strict=True):
+    # orders below the class against their unpadded models (order 3 fills it)
+    for order, (_, q_pad) in zip((1, 2), padded[:2], strict=True):
         ref_model = _rod(order, n_gauss=POINTS)
         ref = np.asarray(sj.solve_statics(ref_model).q)
         idx = sj.active_coordinates(sj.size_class(ref_model, CLASS))
