@@ -33,6 +33,7 @@ from .._results import RESULTS
 from ..dynamics._eom import (
     GeneralizedForce,
     InputFunction,
+    as_inputs,
     consistent_velocities,
     constrained_dynamics,
     mass_and_force,
@@ -615,9 +616,9 @@ def _split_inputs(linkage: Linkage, u, dtype):
                 "u is a function but this linkage has no actuators (n_inputs = 0): "
                 "add actuators to Linkage(actuators=...) or drop u."
             )
-        return u, jnp.asarray(np.zeros(m, dtype))
+        return u, as_inputs(linkage, None, dtype)
     if u is None:
-        return None, jnp.asarray(np.zeros(m, dtype))
+        return None, as_inputs(linkage, None, dtype)
     u = jnp.asarray(u, dtype=dtype).reshape(-1)
     if u.shape != (m,):
         raise ValueError(

@@ -46,6 +46,11 @@ def translation(x: float = 0.0, y: float = 0.0, z: float = 0.0) -> Array:
     )
 
 
+def default_n_gauss(order: int) -> int:
+    """Interior points of a division whose basis has order ``order`` by default."""
+    return max(8, 2 * order + 4)
+
+
 class Division(eqx.Module):
     """One division of a soft link.
 
@@ -92,7 +97,7 @@ class Division(eqx.Module):
                 "CustomBasis."
             )
         if n_gauss is None:
-            n_gauss = max(8, 2 * basis.max_order + 4)
+            n_gauss = default_n_gauss(basis.max_order)
         if not isinstance(n_gauss, int | np.integer) or n_gauss < 1:
             raise ValueError(
                 f"Division.n_gauss = {n_gauss!r}: give an integer >= 1 (number of "

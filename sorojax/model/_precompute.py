@@ -247,7 +247,8 @@ def precompute(linkage: Linkage) -> LinkageData:
             G = mat.G
             for div, dl in zip(link.divisions, ll.divisions, strict=True):
                 L = div.length
-                if isinstance(div.basis, PaddedBasis):
+                padded_div = isinstance(div.basis, PaddedBasis)
+                if padded_div:
                     # a size class's empty division (length 0, every column off)
                     # scales by 1 instead of 1/0 (its basis is zero: 0 * inf = nan)
                     S = _scale_rows(jnp.where(L > 0, L, 1.0))[None, :, None]
@@ -270,9 +271,8 @@ def precompute(linkage: Linkage) -> LinkageData:
                 )(jnp.asarray(X1))
                 wL = jnp.asarray(dl.w) * L
                 o, nd = dl.offset, dl.n_dof
-                locked = None
-                if isinstance(div.basis, PaddedBasis):
-                    locked = 1.0 - div.basis.active
+                locked = 1.0 - div.basis.active if padded_div else None
+                if padded_div:
                     padded.append((o, locked))
                 if nd:
                     Kd = jnp.einsum("p,pai,pab,pbj->ij", wL, Phi, Sigma, Phi)

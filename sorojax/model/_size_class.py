@@ -29,7 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._basis import MODE_NAMES, AbstractPolynomialBasis, PaddedBasis
-from ._link import Division, SoftLink
+from ._link import Division, SoftLink, default_n_gauss
 from ._linkage import Linkage
 
 
@@ -76,11 +76,6 @@ def replace_divisions(
             "n_gauss)."
         )
     return Linkage(links, **kw, added_mass=linkage.added_mass)
-
-
-def _class_points(order: int) -> int:
-    """The default number of points of a division of basis order ``order``."""
-    return max(8, 2 * order + 4)
 
 
 def size_class(
@@ -164,7 +159,7 @@ def size_class(
             if c:
                 cols += [1.0 if m and j <= o else 0.0 for j in range(order + 1)]
         basis = PaddedBasis(type(b)(cm, order), jnp.asarray(np.asarray(cols)))
-        ng = n_gauss if n_gauss is not None else max(div.n_gauss, _class_points(order))
+        ng = max(div.n_gauss, default_n_gauss(order)) if n_gauss is None else n_gauss
         return Division(div.length, div.section, basis, ng, div.xi_ref)
 
     padded = replace_divisions(linkage, pad, "size_class")
