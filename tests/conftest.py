@@ -86,6 +86,23 @@ def pytest_collection_modifyitems(config, items):
 
 
 @pytest.fixture
+def compiles(monkeypatch):
+    """The compiler options of every program sorojax's entry points compile, in
+    order (one per model structure and tier): a spy on equinox's compile call."""
+    from sorojax import _jit as sjit
+
+    seen = []
+    real = sjit.eqx._compile_utils.Lowered.compile
+
+    def spy(self, compiler_options=None):
+        seen.append(dict(compiler_options or {}))
+        return real(self, compiler_options)
+
+    monkeypatch.setattr(sjit.eqx._compile_utils.Lowered, "compile", spy)
+    return seen
+
+
+@pytest.fixture
 def key():
     """A fixed PRNG key."""
     return jax.random.PRNGKey(0)

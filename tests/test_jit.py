@@ -186,19 +186,12 @@ def test_compile_mode_reads_the_environment(monkeypatch):
 
 
 @pytest.fixture
-def tiered(monkeypatch):
-    """The tiered compile mode (the suite runs "full": every program is at -O0)."""
+def tiered(monkeypatch, compiles):
+    """The tiered compile mode (the suite runs "full": every program is at -O0),
+    with the compile spy of conftest.py."""
     if not sjit._tiers_apply():
         pytest.skip("compile tiers apply on CPU with sorojax's XLA options")
     monkeypatch.setenv("SOROJAX_COMPILE", "tiered")
-    compiles = []
-    real = sjit.eqx._compile_utils.Lowered.compile
-
-    def spy(self, compiler_options=None):
-        compiles.append(dict(compiler_options or {}))
-        return real(self, compiler_options)
-
-    monkeypatch.setattr(sjit.eqx._compile_utils.Lowered, "compile", spy)
     return compiles
 
 

@@ -14,7 +14,6 @@ import numpy as np
 import pytest
 
 import sorojax as sj
-from sorojax import _jit as sjit
 from sorojax._mechanisms import cable_manipulator
 from sorojax.scenes import cantilever, free_fall_q0, free_fall_rod
 
@@ -22,20 +21,6 @@ CLASS = 3  # below the 6th-order Magnus threshold (order 4), like orders 1-3
 POINTS = 10  # the class's default points: max(8, 2 * 3 + 4)
 GRAVITY = (0.0, 0.0, -9.81)
 WRENCH = [0.0, 0.0, 0.0, 0.0, 0.2, 0.05]  # tip force along y and z [N]
-
-
-@pytest.fixture
-def compiles(monkeypatch):
-    """Programs compiled by sorojax's entry points (one per structure)."""
-    seen = []
-    real = sjit.eqx._compile_utils.Lowered.compile
-
-    def spy(self, compiler_options=None):
-        seen.append(1)
-        return real(self, compiler_options)
-
-    monkeypatch.setattr(sjit.eqx._compile_utils.Lowered, "compile", spy)
-    return seen
 
 
 def _rod(order, modes=(1, 1, 1, 0, 0, 0), n_gauss=None):
