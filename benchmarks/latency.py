@@ -204,7 +204,8 @@ def child_tiered(name, repeats):
         calls += 1
     # the second compile runs in a worker thread while the -O0 calls go on; the
     # call that finds it done switches to it (its time is a warm call's)
-    slow.pop() if program.full is not None else None
+    if program.full is not None:
+        slow.pop()
     promoting = program.promote_s if program.promote_s is not None else float("nan")
     warm = []
     for _ in range(repeats):
