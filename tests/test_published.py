@@ -21,6 +21,7 @@ import math
 import pathlib
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -365,6 +366,16 @@ def test_rectangle_torsion_constant_matches_finite_differences():
         ) / 3
         J = float(sj.rectangle_torsion_constant(ratio, 1.0))
         assert J == pytest.approx(fd, rel=1e-4), f"a/b {ratio}: {J} vs FD {fd}"
+
+
+def test_rectangle_torsion_constant_host_equals_traced():
+    """Concrete sides take a NumPy path, traced ones the jax.numpy path: the same
+    series, so equal to rounding (1e-14), arrays of sides included."""
+    h, w = np.array([0.02, 0.05, 0.01]), np.array([0.01, 0.05, 0.03])
+    host = np.asarray(sj.rectangle_torsion_constant(h, w))
+    traced = np.asarray(jax.jit(jax.vmap(sj.rectangle_torsion_constant))(h, w))
+    assert host.shape == (3,)
+    np.testing.assert_allclose(host, traced, rtol=1e-14)
 
 
 def test_ellipse_torsion_constant():

@@ -204,7 +204,21 @@ def rectangle_torsion_constant(h, w) -> Array:
     ``a b^3 / 3 [1 - 192 b / (pi^5 a) sum_{n odd} tanh(n pi a / (2 b)) / n^5]`` with
     ``a = max(h, w)``, ``b = min(h, w)``, summed to n = 199 (truncation below 1e-10
     relative); square: 0.14058 a^4.
+
+    With concrete (not traced) ``h`` and ``w`` the series is summed with NumPy: run
+    eagerly with ``jax.numpy`` its dozen operations compile one XLA program each
+    (~0.35 s on a first call).
     """
+    if not any(isinstance(x, jax.core.Tracer) for x in (h, w)):
+        dtype = jnp.result_type(h, w, float)
+        a, b = (
+            np.maximum(np.asarray(h, float), np.asarray(w, float)),
+            np.minimum(np.asarray(h, float), np.asarray(w, float)),
+        )
+        s = np.sum(
+            np.tanh(np.multiply.outer(np.pi * a / (2 * b), _N_ODD)) / _N_ODD**5, -1
+        )
+        return jnp.asarray(a * b**3 / 3 * (1 - 192 / np.pi**5 * (b / a) * s), dtype)
     a, b = jnp.maximum(h, w), jnp.minimum(h, w)
     n = jnp.asarray(_N_ODD)
     s = jnp.sum(jnp.tanh(n * jnp.pi * a / (2 * b)) / n**5)
