@@ -304,6 +304,31 @@ def test_auto_decides_from_the_structure_when_traced():
     assert picks == ["ros34pw2", "tsit5", "tsit5"]
 
 
+def test_auto_takes_tsit5_for_rigid_links_without_springs_and_compiles_nothing(
+    monkeypatch,
+):
+    """Rigid links with neither joint stiffness nor damping: K = D = 0, so the
+    linearised state matrix [[0, I], [0, 0]] has only zero eigenvalues and the
+    eigenvalue test would pick Tsit5. "auto" decides it from the model, without
+    the program of M, K, D; the eigenvalues (computed here) are 0 to 1e-12. A
+    joint spring sends the decision back to the eigenvalues."""
+    from sorojax._mechanisms import four_bar, four_bar_assemble
+    from sorojax.integrate import _simulate as S
+
+    bar = four_bar()
+    q0 = jnp.asarray(four_bar_assemble(0.3))
+    real, calls = S._linear_terms, []
+    monkeypatch.setattr(S, "_linear_terms", lambda *a: calls.append(1) or real(*a))
+    assert sj.integrate.auto_solver(bar, q0, 0.0, 100.0, 1e-3) == "tsit5"
+    assert not calls, "auto computed M, K, D"
+    assert np.abs(S._eigenvalues(bar, q0)).max() < 1e-12
+    assert calls, "the spy did not see the eigenvalues' M, K, D"
+    sprung = sj.Linkage(
+        [sj.RigidLink(sj.Joint("R", stiffness=2.0), length=0.1, mass=0.1)]
+    )
+    assert not S._without_springs(sprung) and S._without_springs(bar)
+
+
 def test_auto_keeps_explicit_with_closed_loops():
     """A damped soft rod over a long run takes ROS34PW2, but not once a closed loop
     ties its tip: the loop's Baumgarte rows are not in W (5 s of the manual's hybrid

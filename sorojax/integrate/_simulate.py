@@ -131,8 +131,27 @@ def stiffness_estimate(linkage: Linkage, q0) -> float:
     return float(np.abs(lam).max()) if lam.size else 0.0
 
 
+def _without_springs(linkage: Linkage) -> bool:
+    """Rigid links only and no joint stiffness or damping: ``K = D = 0``.
+
+    The linearised state matrix is then nilpotent (every eigenvalue 0), so the
+    eigenvalue test of :func:`auto_solver` would pick Tsit5; deciding it here
+    skips the program of M, K and D (a rigid four-bar's first ``simulate``: ~0.3 s).
+    """
+    if any(isinstance(link, SoftLink) for link in linkage.links):
+        return False
+    return not any(
+        np.any(np.asarray(link.joint.stiffness))
+        or np.any(np.asarray(link.joint.damping))
+        for link in linkage.links
+    )
+
+
 def auto_solver(linkage: Linkage, q0, t0, t1, rtol: float) -> str:
     """The solver name ``solver="auto"`` takes for this run (see ``DEFAULT_SOLVER``).
+
+    A linkage of rigid links without joint stiffness or damping has no fast modes
+    (K = D = 0): Tsit5, decided without computing M, K, D.
 
     Args:
         linkage: the model.
@@ -150,6 +169,8 @@ def auto_solver(linkage: Linkage, q0, t0, t1, rtol: float) -> str:
         soft = any(isinstance(link, SoftLink) for link in linkage.links)
         rosenbrock = soft and not linkage.closed_loops and rtol >= AUTO_MIN_RTOL
         return "ros34pw2" if rosenbrock else "tsit5"
+    if _without_springs(linkage):
+        return "tsit5"  # K = D = 0: every eigenvalue is 0, no program needed
     lam = _eigenvalues(linkage, q0)
     if not lam.size:
         return "tsit5"
