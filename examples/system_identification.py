@@ -261,8 +261,8 @@ def main(argv=None):
     print(
         f"{len(xs) - 1} accepted LM steps, {evaluations} evaluations of (r, J); "
         f"residual RMS {rms:.3f} x noise; {seconds_fit:.1f} s (data and fit, incl. "
-        f"compile or cache load); one (r, J) compiled: {1e3 * seconds_eval:.0f} ms (median "
-        "of the fit's)"
+        f"compile or cache load); one (r, J) compiled: {1e3 * seconds_eval:.0f} ms "
+        "(median of the fit's)"
     )
 
     fitted = evaluate(x, args.dt)[0]
