@@ -16,9 +16,10 @@ to 50 N over the first second; prints the step counts, the largest closure error
 along the motion and the torque. Writes a PNG (equilibrium, snapshots, torque);
 ``--video`` also writes an animation (mp4, or GIF without ffmpeg).
 
-The first run compiles the statics and the dynamics of this closed-loop model (about
-40 s in all on a 2-core CPU); the compiled programs are kept in JAX's persistent cache
-(``sorojax.enable_compilation_cache``), so a second run takes about 15 s.
+The first run compiles the statics and the dynamics of this closed-loop model (14-17 s
+in all on a 2-core CPU, 2026-11-25); the compiled programs are kept in JAX's
+persistent cache (``sorojax.enable_compilation_cache``), so a second run takes about
+10 s (the traces are not cached).
 
 Run::
 
