@@ -309,9 +309,10 @@ def test_auto_takes_tsit5_for_rigid_links_without_springs_and_compiles_nothing(
 ):
     """Rigid links with neither joint stiffness nor damping: K = D = 0, so the
     linearised state matrix [[0, I], [0, 0]] has only zero eigenvalues and the
-    eigenvalue test would pick Tsit5. "auto" decides it from the model, without
-    the program of M, K, D; the eigenvalues (computed here) are 0 to 1e-12. A
-    joint spring sends the decision back to the eigenvalues."""
+    eigenvalue test picks Tsit5. "auto" and the stiffness estimate know it from the
+    model, without the program of M, K, D; that program (run here) gives K and D
+    exactly 0 and M symmetric positive definite. A joint spring sends the decision
+    back to the eigenvalues."""
     from sorojax._mechanisms import four_bar, four_bar_assemble
     from sorojax.integrate import _simulate as S
 
@@ -320,9 +321,11 @@ def test_auto_takes_tsit5_for_rigid_links_without_springs_and_compiles_nothing(
     real, calls = S._linear_terms, []
     monkeypatch.setattr(S, "_linear_terms", lambda *a: calls.append(1) or real(*a))
     assert sj.integrate.auto_solver(bar, q0, 0.0, 100.0, 1e-3) == "tsit5"
+    assert S.stiffness_estimate(bar, q0) == 0.0
     assert not calls, "auto computed M, K, D"
-    assert np.abs(S._eigenvalues(bar, q0)).max() < 1e-12
-    assert calls, "the spy did not see the eigenvalues' M, K, D"
+    M, K, D = (np.asarray(a) for a in real(bar, q0))
+    assert not K.any() and not D.any(), "K or D of the rigid four-bar is not 0"
+    assert np.linalg.eigvalsh(M).min() > 0 and np.allclose(M, M.T, atol=1e-14)
     sprung = sj.Linkage(
         [sj.RigidLink(sj.Joint("R", stiffness=2.0), length=0.1, mass=0.1)]
     )

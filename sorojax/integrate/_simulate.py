@@ -113,6 +113,9 @@ def _linear_terms(linkage: Linkage, q0):
 
 def _eigenvalues(linkage: Linkage, q0) -> np.ndarray:
     """Eigenvalues of the linearised state matrix at ``q0`` (at rest)."""
+    if _without_springs(linkage):
+        # K = D = 0: [[0, I], [0, 0]] is nilpotent, no program of M, K, D needed
+        return np.zeros(2 * linkage.n_dof, complex)
     M, K, D = (np.asarray(a) for a in _linear_terms(linkage, q0))
     n = M.shape[0]
     if not n:
@@ -134,9 +137,9 @@ def stiffness_estimate(linkage: Linkage, q0) -> float:
 def _without_springs(linkage: Linkage) -> bool:
     """Rigid links only and no joint stiffness or damping: ``K = D = 0``.
 
-    The linearised state matrix is then nilpotent (every eigenvalue 0), so the
-    eigenvalue test of :func:`auto_solver` would pick Tsit5; deciding it here
-    skips the program of M, K and D (a rigid four-bar's first ``simulate``: ~0.3 s).
+    The linearised state matrix is then nilpotent (every eigenvalue 0):
+    :func:`_eigenvalues` says so without the program of M, K and D (a rigid
+    four-bar's first ``simulate`` with ``solver="auto"``: ~0.3 s).
     """
     if any(isinstance(link, SoftLink) for link in linkage.links):
         return False
@@ -151,7 +154,7 @@ def auto_solver(linkage: Linkage, q0, t0, t1, rtol: float) -> str:
     """The solver name ``solver="auto"`` takes for this run (see ``DEFAULT_SOLVER``).
 
     A linkage of rigid links without joint stiffness or damping has no fast modes
-    (K = D = 0): Tsit5, decided without computing M, K, D.
+    (K = D = 0): Tsit5, decided without computing M (see :func:`_without_springs`).
 
     Args:
         linkage: the model.
@@ -169,8 +172,6 @@ def auto_solver(linkage: Linkage, q0, t0, t1, rtol: float) -> str:
         soft = any(isinstance(link, SoftLink) for link in linkage.links)
         rosenbrock = soft and not linkage.closed_loops and rtol >= AUTO_MIN_RTOL
         return "ros34pw2" if rosenbrock else "tsit5"
-    if _without_springs(linkage):
-        return "tsit5"  # K = D = 0: every eigenvalue is 0, no program needed
     lam = _eigenvalues(linkage, q0)
     if not lam.size:
         return "tsit5"
