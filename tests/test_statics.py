@@ -302,6 +302,41 @@ def test_statics_gradients_match_central_differences():
     assert "callback" not in str(jaxpr)
 
 
+def test_implicit_gradient_reuses_newton_jacobian(monkeypatch):
+    """The derivative solves with Newton's last Jacobian, to the solver's tolerance.
+
+    That Jacobian is evaluated one converged step (|dx| <= 1e-10) before the root,
+    so the implicit derivative must agree with one formed at the root itself (a user
+    optimistix solver's path, which evaluates J there) to about that tolerance times
+    the Jacobian's relative variation: 1e-8 leaves room for the two roots' own
+    difference. And the differentiated program forms the residual's forward-mode
+    Jacobian once (in the Newton loop), not again in the derivative.
+    """
+    x0 = jnp.asarray([1e7, 0.01, 0.1])  # P L^2 / EI ~ 1.3: a large deflection
+
+    def tip(x, solver=None, order=4):
+        lk = cantilever(
+            1.0, x[1], x[0], modes=PLANAR_Z, order=order,
+            tip_wrench=jnp.stack([0.0, 0.0, 0.0, 0.0, x[2], 0.0]),
+        )  # fmt: skip
+        q = sj.solve_statics(lk, solver=solver, throw=False).q
+        return sj.tip_pose(lk, q)[1, 3]
+
+    newton = optx.Newton(rtol=1e-12, atol=1e-12)
+    g_loop = jax.jit(jax.grad(tip))(x0)
+    g_root = jax.jit(jax.grad(lambda x: tip(x, newton)))(x0)
+    np.testing.assert_allclose(g_loop, g_root, rtol=1e-8)
+
+    calls = []
+    jacfwd = jax.jacfwd
+    monkeypatch.setattr(
+        jax, "jacfwd", lambda *a, **k: calls.append(1) or jacfwd(*a, **k)
+    )
+    # order 2: a structure no other test traces (a cached trace calls nothing)
+    jax.make_jaxpr(jax.grad(lambda x: tip(x, order=2)))(x0)
+    assert len(calls) == 1, f"{len(calls)} forward-mode Jacobians of the residual"
+
+
 # ------------------------------------------------------- hooks, f(t) loads, reuse
 def test_custom_wrench_hook_reproduces_gravity():
     p = SAG
