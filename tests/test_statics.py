@@ -6,6 +6,7 @@ beam; scipy BVP solutions of the planar Cosserat rod for self-weight sag, with a
 without a rigid tip body; joint stiffness; branched independence; implicit gradients.
 """
 
+import functools
 import math
 
 import jax
@@ -276,10 +277,25 @@ def _tip_y_through_statics(E, r, P, throw=True):
     return sj.tip_pose(lk, q)[1, 3]
 
 
+@functools.cache
+def _tip_y_value_and_grad(solver=None):
+    """One compiled value-and-gradient program per solver, shared by the tests."""
+
+    def tip(x):
+        lk = cantilever(
+            1.0, x[1], x[0], modes=PLANAR_Z, order=4,
+            tip_wrench=jnp.stack([0.0, 0.0, 0.0, 0.0, x[2], 0.0]),
+        )  # fmt: skip
+        q = sj.solve_statics(lk, solver=solver, throw=False).q
+        return sj.tip_pose(lk, q)[1, 3]
+
+    return jax.jit(jax.value_and_grad(tip))
+
+
 def test_statics_gradients_match_central_differences():
     x0 = np.array([1e7, 0.01, 0.1])  # E [Pa], radius [m], tip load [N]: P L^2/EI ~ 1.3
     # One compiled program gives the gradient and, at shifted x, the differences.
-    f = jax.jit(jax.value_and_grad(lambda x: _tip_y_through_statics(*x, throw=False)))
+    f = _tip_y_value_and_grad()
     y0, grad = f(jnp.asarray(x0))
     assert np.isfinite(float(y0))
     for i, name in enumerate(["E", "radius", "load"]):
@@ -313,18 +329,9 @@ def test_implicit_gradient_reuses_newton_jacobian(monkeypatch):
     Jacobian once (in the Newton loop), not again in the derivative.
     """
     x0 = jnp.asarray([1e7, 0.01, 0.1])  # P L^2 / EI ~ 1.3: a large deflection
-
-    def tip(x, solver=None, order=4):
-        lk = cantilever(
-            1.0, x[1], x[0], modes=PLANAR_Z, order=order,
-            tip_wrench=jnp.stack([0.0, 0.0, 0.0, 0.0, x[2], 0.0]),
-        )  # fmt: skip
-        q = sj.solve_statics(lk, solver=solver, throw=False).q
-        return sj.tip_pose(lk, q)[1, 3]
-
     newton = optx.Newton(rtol=1e-12, atol=1e-12)
-    g_loop = jax.jit(jax.grad(tip))(x0)
-    g_root = jax.jit(jax.grad(lambda x: tip(x, newton)))(x0)
+    g_loop = _tip_y_value_and_grad()(x0)[1]
+    g_root = _tip_y_value_and_grad(newton)(x0)[1]
     np.testing.assert_allclose(g_loop, g_root, rtol=1e-8)
 
     calls = []
@@ -332,8 +339,16 @@ def test_implicit_gradient_reuses_newton_jacobian(monkeypatch):
     monkeypatch.setattr(
         jax, "jacfwd", lambda *a, **k: calls.append(1) or jacfwd(*a, **k)
     )
+
     # order 2: a structure no other test traces (a cached trace calls nothing)
-    jax.make_jaxpr(jax.grad(lambda x: tip(x, order=2)))(x0)
+    def tip2(x):
+        lk = cantilever(
+            1.0, x[1], x[0], modes=PLANAR_Z, order=2,
+            tip_wrench=jnp.stack([0.0, 0.0, 0.0, 0.0, x[2], 0.0]),
+        )  # fmt: skip
+        return sj.tip_pose(lk, sj.solve_statics(lk, throw=False).q)[1, 3]
+
+    jax.make_jaxpr(jax.grad(tip2))(x0)
     assert len(calls) == 1, f"{len(calls)} forward-mode Jacobians of the residual"
 
 
