@@ -217,6 +217,53 @@ def test_returned_effort_is_differentiable(prescribed_arm):
     assert abs(float(jax.jacfwd(torque)(th)) - exact) < 1e-12
 
 
+def test_effort_derivative_follows_the_free_coordinates():
+    """d(effort)/d(theta) through a free joint whose equilibrium moves with theta.
+
+    A prescribed revolute (angle theta) carries a bar and, on a sprung revolute (k),
+    a second bar, under gravity: the second joint's angle phi(theta) moves with
+    theta, so the holding torque's derivative is the explicit one plus the
+    residual's slope times d(phi)/d(theta) (the solve's implicit derivative). Forward
+    and reverse mode against central differences of the same solve (step 1e-5 rad:
+    truncation ~1e-10, round-off ~1e-11 relative); the frozen-phi derivative differs
+    from it by d(phi)/d(theta), which the test requires to be far from zero.
+    """
+    bar = sj.RigidLink(
+        sj.Joint("R", axis=(0, 0, 1.0)),
+        length=L_BAR,
+        mass=M_BAR,
+        inertia=np.diag([1e-4, 3e-3, I_ZZ]),
+    )
+    sprung = sj.RigidLink(
+        sj.Joint("R", axis=(0, 0, 1.0), stiffness=0.5),
+        length=L_BAR,
+        mass=M_BAR,
+        inertia=np.diag([1e-4, 3e-3, I_ZZ]),
+    )
+    lk = sj.Linkage(
+        [bar, sprung],
+        gravity=(0, -G, 0),
+        actuators=[sj.JointActuator(1, prescribed=True)],
+    )
+
+    def solve(th):
+        sol = sj.solve_statics(lk, u=jnp.stack([th]), throw=False)
+        return sol.efforts[0], sol.q[1]
+
+    f = jax.jit(solve)
+    th, h = 0.4, 1e-5
+    fd = (np.asarray(f(th + h)) - np.asarray(f(th - h))) / (2 * h)  # (torque, phi)
+    assert abs(fd[1]) > 0.05, f"d phi / d theta = {fd[1]}: the free joint barely moves"
+    reverse = float(jax.jit(jax.grad(lambda t: solve(t)[0]))(th))
+    forward = np.asarray(jax.jit(jax.jacfwd(solve))(th))
+    for mode, got, want in (
+        ("reverse, torque", reverse, fd[0]),
+        ("forward, torque", forward[0], fd[0]),
+        ("forward, phi", forward[1], fd[1]),
+    ):
+        assert abs(got - want) < 1e-7 * abs(want), f"{mode}: {got:.10e} vs {want:.10e}"
+
+
 def test_prescribed_revolute_dynamics_follows_motion_and_returns_inverse_dynamics(
     prescribed_arm,
 ):

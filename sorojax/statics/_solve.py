@@ -171,52 +171,49 @@ def _value_with_jvp(value, converted, inputs, rule):
     return ident(jax.lax.stop_gradient(value), tuple(inputs), consts)
 
 
-def _implicit_solution(converted, x_star, args, J, least_squares: bool):
-    """``x_star`` (a root of ``f(x, args)``) with implicit-function derivatives.
+def _implicit_solution(converted, x_star, r_star, args, J, J_r, least_squares: bool):
+    """A root ``x_star`` of ``f(x, args)`` and the rows ``r_star``, with derivatives.
 
-    ``converted``: ``f`` as ``(g, c)``, ``g((x, args), c)`` (``_closure_converted``).
-    Its derivative with respect to ``args`` (and to any array ``f`` closes over) is
-    ``dx = -J^-1 (df/dargs dargs)`` with ``J = df/dx`` (LU, or the SVD pseudo-inverse
-    for closed loops, whose redundant rows make J singular). ``J`` is the solver's
-    last Jacobian (Newton's last evaluation, one step of at most the tolerance before
-    ``x_star``: the derivative is then exact to about the tolerance, and the program
-    holds no second forward-mode Jacobian of the residual). The solve is a dense JAX
-    one, transposable for reverse mode and free of host callbacks (lineax's
-    transposed solve always checks its result with one, which keeps a program out of
-    JAX's persistent compilation cache); at a singular equilibrium (a bifurcation
-    point) the LU derivatives are not finite.
+    The implicit function theorem's. ``converted``: ``(f, r)`` as ``(g, c)``,
+    ``g((x, args), c)`` (``_closure_converted``). The root's derivative with respect
+    to ``args`` (and to any array ``g`` closes over) is ``dx = -J^-1 df``, ``df`` the
+    derivative of ``f`` at fixed x and ``J = df/dx`` (LU, or the SVD pseudo-inverse
+    for closed loops, whose redundant rows make J singular); the rows' is
+    ``dr = dr_a + J_r dx``, ``dr_a`` from the same forward-mode pass and
+    ``J_r = dr/dx``. ``J`` and ``J_r`` are the solver's last Jacobians (Newton's last
+    evaluation, one converged step of at most the tolerance before ``x_star``: the
+    derivatives are then exact to about the tolerance), so the derivative forms no
+    Jacobian of the residual and traces its forward mode once, for both outputs. The
+    solve is a dense JAX one, transposable for reverse mode and free of host
+    callbacks (lineax's transposed solve always checks its result with one, which
+    keeps a program out of JAX's persistent compilation cache); at a singular
+    equilibrium (a bifurcation point) the LU derivatives are not finite.
     """
 
     def rule(g, ins, t_ins, c, t_c):
-        x, a, J_ = ins
-        _, rhs = jax.jvp(lambda a_, c_: g((x, a_), c_), (a, c), (t_ins[1], t_c))
+        x, a, J_, J_r_ = ins
+        _, (df, dr_a) = jax.jvp(lambda a_, c_: g((x, a_), c_), (a, c), (t_ins[1], t_c))
         if least_squares:
-            return -(jnp.linalg.pinv(J_) @ rhs)
-        return -jnp.linalg.solve(J_, rhs)
+            dx = -(jnp.linalg.pinv(J_) @ df)
+        else:
+            dx = -jnp.linalg.solve(J_, df)
+        return dx, dr_a + J_r_ @ dx
 
-    x_star = jax.lax.stop_gradient(x_star)
-    J = jax.lax.stop_gradient(J)
-    return _value_with_jvp(x_star, converted, (x_star, args, J), rule)
-
-
-def _with_derivative(converted, value, inputs):
-    """``value`` (``g(inputs, c)`` computed elsewhere) carrying the derivative of ``g``.
-
-    The primal program keeps ``value`` as it is (no second evaluation of ``g``).
-    """
-
-    def rule(g_, ins, t_ins, c, t_c):
-        return jax.jvp(g_, (ins, c), (t_ins, t_c))[1]
-
-    return _value_with_jvp(value, converted, inputs, rule)
+    value = jax.lax.stop_gradient((x_star, r_star))
+    ins = (value[0], args, *jax.lax.stop_gradient((J, J_r)))
+    return _value_with_jvp(value, converted, ins, rule)
 
 
 def _jacobian_and_values(f_aux, x):
-    """``(J, (f, aux))`` of ``f_aux(x) -> (f, aux)`` in one forward-mode pass."""
+    """``((J, J_aux), (f, aux))`` of ``f_aux(x) -> (f, aux)`` in one forward-mode pass.
+
+    ``J = df/dx`` and ``J_aux = daux/dx`` (``aux`` an array: its tangents are those
+    the pass computes for ``f`` anyway).
+    """
 
     def f_and_out(x_):
         f, aux = f_aux(x_)
-        return f, (f, aux)
+        return (f, aux), (f, aux)
 
     return jax.jacfwd(f_and_out, has_aux=True)(x)
 
@@ -258,8 +255,8 @@ def _newton(
     coordinate moves by more than ``max_step`` per iteration (the step is scaled
     down, its direction kept).
 
-    Returns ``(x, f, aux, J, steps, status)``, status 0 converged, 1 out of steps,
-    2 non-finite values, 3 failed linear solve.
+    Returns ``(x, f, aux, (J, J_aux), steps, status)`` (``J_aux = daux/dx``), status
+    0 converged, 1 out of steps, 2 non-finite values, 3 failed linear solve.
     """
     n_inc_given, n_inc_of = n_inc
     dtype = x0.dtype
@@ -295,7 +292,7 @@ def _newton(
     def body(c):
         k, n, x, it, total, small, _, _, _ = c
         probe = k == 0
-        J, (f, aux) = evaluate(x, jnp.where(probe, one, k / n))
+        (J, J_aux), (f, aux) = evaluate(x, jnp.where(probe, one, k / n))
         if n_mult:
             # Least-squares multipliers at x0; the residual the increments are
             # chosen from is the one left after them.
@@ -358,12 +355,12 @@ def _newton(
             total + step.astype(int_),
             step & dx_small & ~advance,
             status,
-            J,
+            (J, J_aux),
             (f, aux),
         )
 
-    _, _, x, _, total, _, status, J, (f, aux) = lax.while_loop(cond, body, init)
-    return x, f, aux, J, total, status
+    _, _, x, _, total, _, status, Js, (f, aux) = lax.while_loop(cond, body, init)
+    return x, f, aux, Js, total, status
 
 
 @jit
@@ -452,7 +449,7 @@ def _solve_statics(
     if solver is None:
         # Load increments and Newton iterations in one loop with one trace of the
         # residual and its Jacobian (the compile time is about that trace).
-        x_star, f_star, r_star, J, steps, status = _newton(
+        x_star, f_star, r_star, (J, J_r), steps, status = _newton(
             lambda x, lam: fn_aux(x, with_load(args_ng, lam)),
             jax.lax.stop_gradient(x0),
             args_ng,
@@ -489,7 +486,7 @@ def _solve_statics(
             ),
             max_steps=max_steps,
         )
-        J, (f_star, r_star) = _jacobian_and_values(
+        (J, J_r), (f_star, r_star) = _jacobian_and_values(
             lambda x_: fn_aux(x_, with_load(args_ng, one)), x_star
         )
         finite = jnp.all(jnp.isfinite(x_star)) & jnp.all(jnp.isfinite(r_star))
@@ -499,17 +496,19 @@ def _solve_statics(
             result,
         )
     if differentiable:
-        # One closure conversion (a trace of the residual) for both custom
-        # derivatives.
+        # One closure conversion (a trace of the residual) for the root and the
+        # rows, whose derivatives share one forward-mode pass.
         full_args = with_load(args, one)
-        g_aux, consts = _closure_converted(fn_aux, x_star, full_args)
-        x_sol = _implicit_solution(
-            (lambda i, c: g_aux(i, c)[0], consts), x_star, full_args, J, closed
+        x_sol, r = _implicit_solution(
+            _closure_converted(fn_aux, x_star, full_args),
+            x_star,
+            r_star,
+            full_args,
+            J,
+            J_r,
+            closed,
         )
         q, mu = full(x_sol, 1.0, u)
-        r = _with_derivative(
-            (lambda i, c: g_aux(i, c)[1], consts), r_star, (x_sol, full_args)
-        )
     else:  # the same values; nothing can differentiate a top-level call
         q, mu = full(x_star, 1.0, u)
         r = r_star
