@@ -43,10 +43,10 @@ J <= 1e-2 mm^2 (tip RMS 0.1 mm) after 56 solves, 0.08 s, and 8.5e-7 mm^2 (tip RM
 solves, 4.6 s, to 1e-2, and 6.6e-5 mm^2 after its 2000 evaluations (16000 solves,
 9 s), a level LM passes after 64 solves. The found design fits the tips, not the
 reference's every value: E and the radii trade off (the problem is sloppy).
-The first calls of the two programs (trace, compile, run) take ~6 s and ~12 s on a
-2-core CPU (2026-11-25, stop 31; the second took ~16 s before the statics' implicit
-derivative reused Newton's Jacobian): the example's first run (31-34 s) is these
-and the optimisers' own 12-13 s, Nelder-Mead's 16000 solves most of it.
+The first calls of the two programs (trace, compile, run) take ~5-6 s and ~9 s on a
+2-core CPU (2026-11-25, stop 31; the second took ~14-16 s before the statics'
+implicit derivative reused Newton's Jacobian): the example's first run (31-34 s) is
+these and the optimisers' own 12-13 s, Nelder-Mead's 16000 solves most of it.
 
 Run::
 
