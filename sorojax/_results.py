@@ -29,7 +29,11 @@ class StaticsSolution(eqx.Module):
     more accurate, to about the square of that step), which saves a whole evaluation
     of the residual and its Jacobian per solve. Their values at ``q`` itself differ
     by about the tolerances times the stiffness (e.g. 2e-10 relative in the manual
-    hybrid scene's revolute torque at the default 1e-10).
+    hybrid scene's revolute torque at the default 1e-10). Derivatives of ``q``,
+    ``lam``, ``efforts`` and ``residual_norm`` (``jax.grad``, ``jax.jvp``, ...) come
+    from the implicit function theorem with the same last iterate's Jacobian, so they
+    are exact to about the tolerances as well (a user optimistix ``solver`` forms it
+    at ``q``).
 
     Attributes:
         q: generalised coordinates at equilibrium, shape ``(n_dof,)``.
