@@ -181,16 +181,22 @@ M_BAR, L_BAR, G = 0.5, 0.3, 9.81
 I_ZZ = 4e-3
 
 
-@pytest.fixture(scope="module")
-def prescribed_arm():
-    bar = sj.RigidLink(
-        sj.Joint("R", axis=(0, 0, 1.0)),
+def _arm_bar(stiffness=0.0):
+    """The uniform bar on a revolute about z (joint stiffness [N m/rad])."""
+    return sj.RigidLink(
+        sj.Joint("R", axis=(0, 0, 1.0), stiffness=stiffness),
         length=L_BAR,
         mass=M_BAR,
         inertia=np.diag([1e-4, 3e-3, I_ZZ]),
     )
+
+
+@pytest.fixture(scope="module")
+def prescribed_arm():
     return sj.Linkage(
-        [bar], gravity=(0, -G, 0), actuators=[sj.JointActuator(1, prescribed=True)]
+        [_arm_bar()],
+        gravity=(0, -G, 0),
+        actuators=[sj.JointActuator(1, prescribed=True)],
     )
 
 
@@ -228,20 +234,8 @@ def test_effort_derivative_follows_the_free_coordinates():
     truncation ~1e-10, round-off ~1e-11 relative); the frozen-phi derivative differs
     from it by d(phi)/d(theta), which the test requires to be far from zero.
     """
-    bar = sj.RigidLink(
-        sj.Joint("R", axis=(0, 0, 1.0)),
-        length=L_BAR,
-        mass=M_BAR,
-        inertia=np.diag([1e-4, 3e-3, I_ZZ]),
-    )
-    sprung = sj.RigidLink(
-        sj.Joint("R", axis=(0, 0, 1.0), stiffness=0.5),
-        length=L_BAR,
-        mass=M_BAR,
-        inertia=np.diag([1e-4, 3e-3, I_ZZ]),
-    )
     lk = sj.Linkage(
-        [bar, sprung],
+        [_arm_bar(), _arm_bar(stiffness=0.5)],
         gravity=(0, -G, 0),
         actuators=[sj.JointActuator(1, prescribed=True)],
     )

@@ -264,32 +264,27 @@ def test_solver_failure_is_reported_not_nan():
 
 
 # ------------------------------------------------------------- implicit gradients
-def _tip_y_through_statics(E, r, P, throw=True):
+def _tip_y_through_statics(E, r, P, throw=True, solver=None, order=4):
     lk = cantilever(
         1.0,
         r,
         E,
         modes=PLANAR_Z,
-        order=4,
+        order=order,
         tip_wrench=jnp.stack([0.0, 0.0, 0.0, 0.0, P, 0.0]),
     )
-    q = sj.solve_statics(lk, throw=throw).q
+    q = sj.solve_statics(lk, solver=solver, throw=throw).q
     return sj.tip_pose(lk, q)[1, 3]
 
 
 @functools.cache
 def _tip_y_value_and_grad(solver=None):
     """One compiled value-and-gradient program per solver, shared by the tests."""
-
-    def tip(x):
-        lk = cantilever(
-            1.0, x[1], x[0], modes=PLANAR_Z, order=4,
-            tip_wrench=jnp.stack([0.0, 0.0, 0.0, 0.0, x[2], 0.0]),
-        )  # fmt: skip
-        q = sj.solve_statics(lk, solver=solver, throw=False).q
-        return sj.tip_pose(lk, q)[1, 3]
-
-    return jax.jit(jax.value_and_grad(tip))
+    return jax.jit(
+        jax.value_and_grad(
+            lambda x: _tip_y_through_statics(*x, throw=False, solver=solver)
+        )
+    )
 
 
 def test_statics_gradients_match_central_differences():
@@ -341,14 +336,7 @@ def test_implicit_gradient_reuses_newton_jacobian(monkeypatch):
     )
 
     # order 2: a structure no other test traces (a cached trace calls nothing)
-    def tip2(x):
-        lk = cantilever(
-            1.0, x[1], x[0], modes=PLANAR_Z, order=2,
-            tip_wrench=jnp.stack([0.0, 0.0, 0.0, 0.0, x[2], 0.0]),
-        )  # fmt: skip
-        return sj.tip_pose(lk, sj.solve_statics(lk, throw=False).q)[1, 3]
-
-    jax.make_jaxpr(jax.grad(tip2))(x0)
+    jax.make_jaxpr(jax.grad(lambda x: _tip_y_through_statics(*x, False, order=2)))(x0)
     assert len(calls) == 1, f"{len(calls)} forward-mode Jacobians of the residual"
 
 

@@ -18,8 +18,8 @@ by a custom JVP outside that loop (what ``optx.ImplicitAdjoint`` does) that solv
 with the loop's last Jacobian instead of forming it again (differentiated programs
 24-27 % smaller: the manual hybrid's gradient compiled in 5.7 s instead of 8.3 s);
 the returned residual rows carry their derivative in the same JVP, from the same
-forward-mode pass of the residual. A user's optimistix
-solver (``solver=``) runs each increment with optimistix's own loop.
+forward-mode pass of the residual. A user's optimistix solver (``solver=``) runs each
+increment with optimistix's own loop.
 """
 
 import warnings
