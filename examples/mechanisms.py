@@ -33,6 +33,7 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
+import equinox as eqx  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import matplotlib  # noqa: E402
 import numpy as np  # noqa: E402
@@ -84,13 +85,24 @@ def statics_sweep(linkage, assemble, angles, offset=0.02):
     return res
 
 
+def crank_angle(omega, t):
+    """The prescribed crank angle ``omega t`` [rad] as the input vector."""
+    return jnp.stack([omega * t])
+
+
 def driven(linkage, assemble, omega, t1, rtol, n_save):
-    """Simulate the crank driven at ``omega`` [rad/s] for ``t1`` s from theta = 0."""
+    """Simulate the crank driven at ``omega`` [rad/s] for ``t1`` s from theta = 0.
+
+    The input is one ``equinox.Partial`` of a module-level function: equal for both
+    mechanisms, so (with their joints' directions as arrays) the slider-crank
+    reuses the four-bar's compiled integration (a new lambda per call would be a
+    new program).
+    """
     traj = sj.simulate(
         linkage,
         t1,
         assemble(0.0),
-        u=lambda t: jnp.stack([omega * t]),
+        u=eqx.Partial(crank_angle, omega),
         rtol=rtol,
         atol=rtol * 1e-2,
         n_save=n_save,

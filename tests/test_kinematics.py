@@ -76,6 +76,75 @@ def test_rigid_chain_fk_equals_hand_composed_transforms(kind, key):
     np.testing.assert_allclose(got, g, atol=1e-12, err_msg=f"{kind}: tip pose")
 
 
+@pytest.mark.parametrize("kind", list(HAND_BASIS))
+def test_joint_kind_and_axis_are_read_back_from_its_directions(kind):
+    """A joint is stored as its free directions (arrays); kind and axis read back."""
+    j = _joint(kind)
+    assert j.kind == kind
+    assert j.n_dof == HAND_BASIS[kind].shape[1]
+    np.testing.assert_allclose(np.asarray(j.basis()), HAND_BASIS[kind], atol=1e-15)
+    axis = {"U": (1, 0, 0), "A": (0, 0, 1), "S": (1, 0, 0), "F": (1, 0, 0)}
+    np.testing.assert_allclose(j.axis, axis.get(kind, AX if kind != "N" else (1, 0, 0)))
+
+
+def test_joint_kind_inside_traced_code_says_where_to_read_it():
+    @eqx.filter_jit
+    def f(joint):
+        return joint.kind
+
+    with pytest.raises(ValueError, match="Joint.kind .* traced"):
+        f(sj.Joint("R"))
+
+
+def test_joint_types_and_axes_share_one_compiled_program():
+    """Only the number of a joint's freedoms is structure: a revolute about z, one
+    about AX, a prismatic and a helical joint (pitch 0.05 m/rad) under one bar are
+    one program (traced once), and each gives its own tip pose (exp of its twist
+    times the bar, composed by hand: exact to roundoff)."""
+    L, q = 0.3, 0.7
+    z, x = np.r_[0.0, 0, 1, 0, 0, 0], np.r_[0.0, 0, 0, 1, 0, 0]
+    cases = [
+        (sj.Joint("R", axis=(0, 0, 1)), z),
+        (sj.Joint("R", axis=AX), HAND_BASIS["R"][:, 0]),
+        (sj.Joint("P", axis=(1, 0, 0)), x),
+        (sj.Joint("H", axis=AX, pitch=0.05), HAND_BASIS["H"][:, 0]),
+    ]
+
+    @eqx.filter_jit
+    @eqx.debug.assert_max_traces(max_traces=1)
+    def tip(lk, q_):
+        return sj.tip_pose(lk, q_)
+
+    for j, twist in cases:
+        lk = sj.Linkage([sj.RigidLink(j, length=L)])
+        g = np.asarray(expm(hat(jnp.asarray(twist * q)))) @ np.asarray(
+            sj.translation(L)
+        )
+        got = np.asarray(tip(lk, jnp.array([q])))
+        np.testing.assert_allclose(got, g, atol=1e-12, err_msg=f"{j.kind} {j.axis}")
+
+
+def test_gradient_reaches_the_joint_axis():
+    """d(tip)/d(joint direction) by autodiff equals central differences (1e-8)."""
+    L, q = 0.3, 0.7
+    lk = sj.Linkage([sj.RigidLink(sj.Joint("R", axis=AX), length=L)])
+
+    def tip_xy(d):
+        lk_d = eqx.tree_at(lambda m: m.links[0].joint.directions, lk, d)
+        p = sj.tip_pose(lk_d, jnp.array([q]))[:3, 3]
+        return p[0] + 2.0 * p[1]
+
+    d0 = lk.links[0].joint.directions
+    grad = np.asarray(jax.grad(tip_xy)(d0))
+    h = 1e-6
+    fd = np.zeros_like(grad)
+    for i in range(3):  # the angular rows
+        e = jnp.zeros_like(d0).at[i, 0].set(h)
+        fd[i, 0] = (float(tip_xy(d0 + e)) - float(tip_xy(d0 - e))) / (2 * h)
+    assert np.abs(grad[:3]).max() > 0.1  # the axis matters
+    np.testing.assert_allclose(grad[:3], fd[:3], atol=1e-8)
+
+
 # ------------------------------------------------------------------- hybrid tree
 def _hybrid_tree():
     mat = sj.Material(1e6, rho=1000.0)

@@ -50,10 +50,10 @@ def _frames(linkage: Linkage, c, g):
 def _closure_error(c, rel) -> Array:
     """Errors of one closed-loop joint from the relative pose ``g_B^-1 g_A``."""
     R, p = rel[:3, :3], rel[:3, 3]
-    if c.joint.kind == "U":
-        u, v = perpendicular_pair(np.asarray(c.joint.axis))
+    if c.kind == "U":
+        u, v = perpendicular_pair(np.asarray(c.axis))
         return jnp.concatenate([(u @ R @ v)[None], p])
-    if c.joint.kind == "H":
+    if c.kind == "H":
         return jnp.asarray(c.constrained_basis()).T @ log_se3(rel)
     w = 0.5 * jnp.stack([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
     return jnp.asarray(c.constrained_basis()).T @ jnp.concatenate([w, p])

@@ -29,6 +29,9 @@ class ClosedLoopJoint(eqx.Module):
         link_B: 1-based link number of B, or 0 for the ground.
         g_A: pose of the joint frame in A's tip frame.
         g_B: pose of the joint frame in B's tip frame (world pose for ground).
+        kind: the joint's type letter and ``axis`` its axis, kept static: the
+            constraint rows' formula depends on them (a universal joint's, a
+            helical joint's), where a link's joint is only its directions.
     """
 
     joint: Joint
@@ -37,6 +40,8 @@ class ClosedLoopJoint(eqx.Module):
     g_A: Float[Array, "4 4"]
     g_B: Float[Array, "4 4"]
     basis_p: tuple[tuple[float, ...], ...] = eqx.field(static=True)
+    kind: str = eqx.field(static=True)
+    axis: tuple[float, float, float] = eqx.field(static=True)
 
     def __init__(
         self,
@@ -52,7 +57,8 @@ class ClosedLoopJoint(eqx.Module):
             raise ValueError(
                 f"ClosedLoopJoint.joint = {joint!r}: give a Joint or a joint letter."
             )
-        if joint.kind == "F":
+        kind = joint.kind  # raises under jit: the rows are fixed at build time
+        if kind == "F":
             raise ValueError(
                 "ClosedLoopJoint.joint is free ('F'): it constrains nothing; leave it "
                 "out."
@@ -67,6 +73,8 @@ class ClosedLoopJoint(eqx.Module):
         self.g_A = jnp.asarray(eye if g_A is None else g_A, dtype=float)
         self.g_B = jnp.asarray(eye if g_B is None else g_B, dtype=float)
         self.basis_p = tuple(map(tuple, _complement(joint).tolist()))
+        self.kind = kind
+        self.axis = joint.axis
 
     @property
     def n_constraints(self) -> int:

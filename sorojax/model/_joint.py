@@ -62,16 +62,25 @@ def perpendicular_pair(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 class Joint(eqx.Module):
     """A lumped joint.
 
+    The joint's type and axis are stored as its free directions, arrays (like every
+    physical parameter): programs compiled for one joint serve every joint with as
+    many freedoms, so a revolute about z and a prismatic along x, or two revolutes
+    about different axes, share compiled programs; only the number of freedoms is
+    part of a model's structure. ``kind`` and ``axis`` are read back from the
+    directions (outside traced code).
+
     Attributes:
-        kind: one letter of ``N R P H U C A S F``.
-        axis: unit axis (tuple of 3 floats) in the joint frame; see the module text.
+        directions: ``(6, n)`` free directions at zero pitch, angular rows first
+            (unit columns; ``basis()`` adds ``pitch * lead``).
+        lead: ``(6, n)`` the translation per unit pitch (the helical joint's axis;
+            zero for every other type).
         pitch: helical pitch [m/rad] (used by ``H`` only).
         stiffness: joint stiffness matrix ``(n, n)`` [N m/rad or N/m].
         damping: joint damping matrix ``(n, n)``.
     """
 
-    kind: str = eqx.field(static=True)
-    axis: tuple[float, float, float] = eqx.field(static=True)
+    directions: Float[Array, "6 n"]
+    lead: Float[Array, "6 n"]
     pitch: Float[Array, ""]
     stiffness: Float[Array, "n n"]
     damping: Float[Array, "n n"]
@@ -85,6 +94,20 @@ class Joint(eqx.Module):
         stiffness: ArrayLike = 0.0,
         damping: ArrayLike = 0.0,
     ):
+        """Build a joint.
+
+        Args:
+            kind: one letter of ``N R P H U C A S F`` (see the module text).
+            axis: the joint's axis in its frame (normalised); default x (z for
+                ``A``). ``S``, ``F`` and ``N`` have none.
+            pitch: helical pitch [m/rad] (``H``).
+            stiffness: scalar, ``(n,)`` or ``(n, n)`` [N m/rad or N/m].
+            damping: scalar, ``(n,)`` or ``(n, n)``.
+
+        Raises:
+            ValueError: unknown kind, a zero or non-finite axis, bad stiffness or
+                damping shapes or negative values.
+        """
         if not isinstance(kind, str) or kind.upper() not in JOINT_TYPES:
             raise ValueError(
                 f"Joint.kind = {kind!r} is not a joint type: use one of "
@@ -101,52 +124,109 @@ class Joint(eqx.Module):
             )
         a = a / np.linalg.norm(a)
         n = JOINT_DOFS[kind]
-        self.kind = kind
-        self.axis = (float(a[0]), float(a[1]), float(a[2]))
-        self.pitch = jnp.asarray(pitch, dtype=float)
+        directions, lead = _directions(kind, a)
+        # numpy -> a transfer, no operation to compile; concrete even when the joint
+        # is built under jit (kind and axis are read back from them)
+        with jax.ensure_compile_time_eval():
+            self.directions = jnp.asarray(directions)
+            self.lead = jnp.asarray(lead)
+            self.pitch = jnp.asarray(pitch, dtype=float)  # traced if given traced
         self.stiffness = _as_matrix("Joint.stiffness", stiffness, n)
         self.damping = _as_matrix("Joint.damping", damping, n)
 
     @property
     def n_dof(self) -> int:
         """Number of joint coordinates."""
-        return JOINT_DOFS[self.kind]
+        return self.directions.shape[-1]  # (models stacked for vmap: ..., 6, n)
+
+    @property
+    def kind(self) -> str:
+        """The joint type, one letter of ``N R P H U C A S F``, read from the directions."""
+        return _classify(*self._concrete("kind"))[0]
+
+    @property
+    def axis(self) -> tuple[float, float, float]:
+        """The unit axis, read from the directions (x for ``N``, ``S`` and ``F``)."""
+        return _classify(*self._concrete("axis"))[1]
+
+    def _concrete(self, what: str) -> tuple[np.ndarray, np.ndarray]:
+        try:
+            with jax.ensure_compile_time_eval():
+                return np.asarray(self.directions), np.asarray(self.lead)
+        except (
+            jax.errors.ConcretizationTypeError,
+            jax.errors.TracerArrayConversionError,
+        ) as err:
+            raise ValueError(
+                f"Joint.{what} is read from the joint's directions, which are traced "
+                "here (inside jit, grad or vmap): read it outside traced code, or use "
+                "Joint.basis()."
+            ) from err
 
     def basis(self) -> Float[Array, "6 n"]:
         """The joint basis ``Phi_j`` (6 x n_dof), angular rows first."""
-        a = np.asarray(self.axis)
-        z3 = np.zeros(3)
+        return self.directions + self.pitch * self.lead
 
-        def rot(v):
-            return np.concatenate([v, z3])
 
-        def tra(v):
-            return np.concatenate([z3, v])
+def _directions(kind: str, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(directions, lead)`` (6 x n each) of a joint type about/along ``a``."""
+    z3 = np.zeros(3)
 
-        k = self.kind
-        if k == "N":
-            return jnp.zeros((6, 0))
-        if k == "R":
-            cols = [rot(a)]
-        elif k == "P":
-            cols = [tra(a)]
-        elif k == "H":
-            return (
-                jnp.asarray(rot(a))[:, None] + self.pitch * jnp.asarray(tra(a))[:, None]
+    def rot(v):
+        return np.concatenate([v, z3])
+
+    def tra(v):
+        return np.concatenate([z3, v])
+
+    n = JOINT_DOFS[kind]
+    lead = np.zeros((6, n))
+    if kind == "N":
+        return np.zeros((6, 0)), lead
+    if kind in ("R", "H"):
+        cols = [rot(a)]
+        if kind == "H":
+            lead = tra(a)[:, None]
+    elif kind == "P":
+        cols = [tra(a)]
+    elif kind == "U":
+        u, v = perpendicular_pair(a)
+        cols = [rot(u), rot(v)]
+    elif kind == "C":
+        cols = [rot(a), tra(a)]
+    elif kind == "A":
+        u, v = perpendicular_pair(a)
+        cols = [rot(a), tra(u), tra(v)]
+    elif kind == "S":
+        cols = [rot(e) for e in np.eye(3)]
+    else:  # "F"
+        cols = list(np.eye(6))
+    return np.stack(cols, axis=1), lead
+
+
+def _classify(directions: np.ndarray, lead: np.ndarray) -> tuple[str, tuple]:
+    """``(kind, axis)`` of a joint from its directions (inverse of :func:`_directions`)."""
+    n = directions.shape[1]
+    x_axis = (1.0, 0.0, 0.0)
+    if n == 0:
+        return "N", x_axis
+    if n == 6:
+        return "F", x_axis
+    angular = [bool(np.any(directions[:3, k])) for k in range(n)]
+    first = directions[:3, 0] if angular[0] else directions[3:, 0]
+    axis = tuple(float(x) for x in first)
+    if n == 1:
+        if np.any(lead):
+            return "H", axis
+        return ("R" if angular[0] else "P"), axis
+    if n == 2:
+        if all(angular):  # U: the rotations perpendicular to its axis
+            return "U", tuple(
+                float(x) for x in np.cross(directions[:3, 0], directions[:3, 1])
             )
-        elif k == "U":
-            u, v = perpendicular_pair(a)
-            cols = [rot(u), rot(v)]
-        elif k == "C":
-            cols = [rot(a), tra(a)]
-        elif k == "A":
-            u, v = perpendicular_pair(a)
-            cols = [rot(a), tra(u), tra(v)]
-        elif k == "S":
-            cols = [rot(e) for e in np.eye(3)]
-        else:  # "F"
-            cols = list(np.eye(6))
-        return jnp.asarray(np.stack(cols, axis=1))
+        return "C", axis
+    if all(angular):
+        return "S", x_axis
+    return "A", axis
 
 
 def _as_matrix(field: str, value, n: int) -> Array:
