@@ -141,7 +141,7 @@ class Joint(eqx.Module):
 
     @property
     def kind(self) -> str:
-        """The joint type, one letter of ``N R P H U C A S F``, read from the directions."""
+        """The joint type (a letter of ``N R P H U C A S F``), from the directions."""
         return _classify(*self._concrete("kind"))[0]
 
     @property
@@ -204,7 +204,7 @@ def _directions(kind: str, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _classify(directions: np.ndarray, lead: np.ndarray) -> tuple[str, tuple]:
-    """``(kind, axis)`` of a joint from its directions (inverse of :func:`_directions`)."""
+    """``(kind, axis)`` from a joint's directions (inverse of :func:`_directions`)."""
     n = directions.shape[1]
     x_axis = (1.0, 0.0, 0.0)
     if n == 0:
