@@ -87,6 +87,19 @@ def test_joint_kind_and_axis_are_read_back_from_its_directions(kind):
     np.testing.assert_allclose(j.axis, axis.get(kind, AX if kind != "N" else (1, 0, 0)))
 
 
+def test_joints_with_as_many_freedoms_are_one_structure():
+    """Type and axis are array values: R/P/H, U/C and A/S are one pytree structure
+    each (so they share compiled programs), a different count of freedoms is not."""
+
+    def structure(j):
+        return jax.tree.structure(j), [x.shape for x in jax.tree.leaves(j)]
+
+    for group in (("R", "P", "H"), ("U", "C"), ("A", "S")):
+        first = structure(_joint(group[0]))
+        assert all(structure(_joint(k)) == first for k in group[1:]), group
+    assert structure(sj.Joint("R")) != structure(sj.Joint("U"))
+
+
 def test_joint_kind_inside_traced_code_says_where_to_read_it():
     @eqx.filter_jit
     def f(joint):
