@@ -8,6 +8,7 @@ work-energy balance of the driven mechanism; Euler's clamped-clamped buckling lo
 
 import math
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -369,3 +370,49 @@ def test_constraint_terms_from_kinematics_equal_autodiff(kind):
         scale = max(float(jnp.abs(a).max()), 1e-12)
         err = float(jnp.abs(a - b).max()) / scale
         assert err < 1e-12, f"{kind}: {name} differs by {err:.1e} (relative)"
+
+
+def test_baumgarte_time_is_a_parameter_of_one_program(four_bar):
+    """At rest off the assembled shape the loop rows ask ``A qdd = -e / T^2``
+    (Baumgarte, qd = 0): for two times T through one compiled program (T is an
+    array, not structure), and d(A qdd)/dT = 2 e / T^3 by autodiff."""
+    q = jnp.asarray(assemble(0.3)) + jnp.array([0.0, 0.02, -0.01])
+    qd = jnp.zeros(3)
+    u = jnp.array([0.3])  # the crank where q has it: its row is satisfied
+    A = np.asarray(sj.constraint_jacobian(four_bar, q))
+    e = np.asarray(sj.closure_errors(four_bar, q))
+    assert np.abs(e).max() > 1e-3  # off the assembly
+
+    @eqx.filter_jit
+    @eqx.debug.assert_max_traces(max_traces=1)
+    def rows(lk):
+        return jnp.asarray(A) @ sj.forward_dynamics(lk, q, qd, u=u)
+
+    for T in (0.01, 0.05):
+        lk = eqx.tree_at(lambda m: m.baumgarte_time, four_bar, jnp.asarray(T))
+        # exact rows: 1e-9 of |e| / T^2 (the solve's 1e-10 regularisation)
+        np.testing.assert_allclose(
+            np.asarray(rows(lk)), -e / T**2, atol=1e-9 * np.abs(e).max() / T**2
+        )
+
+    def rows_of_T(T):
+        return rows(eqx.tree_at(lambda m: m.baumgarte_time, four_bar, T))
+
+    T = 0.02
+    d = np.asarray(jax.jacfwd(rows_of_T)(jnp.asarray(T)))
+    np.testing.assert_allclose(d, 2 * e / T**3, atol=1e-6 * np.abs(e).max() / T**3)
+
+
+def test_four_bar_and_slider_crank_are_one_structure():
+    """examples/mechanisms.py's two linkages differ in values only (the third
+    joint revolute about z or prismatic along x, the loop's g_B), so they share
+    every compiled program (the example compiles its integration once)."""
+    from sorojax._mechanisms import four_bar as fb
+    from sorojax._mechanisms import slider_crank as sc
+
+    a, b = fb(), sc()
+    assert jax.tree.structure(a) == jax.tree.structure(b)
+    assert [x.shape for x in jax.tree.leaves(a)] == [
+        x.shape for x in jax.tree.leaves(b)
+    ]
+    assert (a.links[2].joint.kind, b.links[2].joint.kind) == ("R", "P")

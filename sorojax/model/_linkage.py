@@ -9,6 +9,7 @@ object may appear several times (a reused link).
 from collections.abc import Callable
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
@@ -54,7 +55,9 @@ class Linkage(eqx.Module):
             ``-M_a etadot`` of a surrounding fluid, added to M (the manual's
             M_added).
         baumgarte_time: T_bs [s] of the Baumgarte stabilisation of closed loops in
-            dynamics (smaller holds the constraint more tightly; default 0.01).
+            dynamics (smaller holds the constraint more tightly; default 0.01); an
+            array, so a new value reuses compiled programs and ``jax.grad``
+            reaches it.
     """
 
     links: tuple[AbstractLink, ...]
@@ -68,7 +71,7 @@ class Linkage(eqx.Module):
     custom_actuation: Callable | None = eqx.field(static=True)
     actuator_strength: Callable | None = eqx.field(static=True)
     added_mass: Float[Array, "n_points 6 6"] | None
-    baumgarte_time: float = eqx.field(static=True)
+    baumgarte_time: Float[Array, ""]
 
     def __init__(
         self,
@@ -159,12 +162,15 @@ class Linkage(eqx.Module):
         for k, c in enumerate(closed_loops):
             _check_closed_loop(k, c, n)
         self.closed_loops = closed_loops
-        if not float(baumgarte_time) > 0:
+        traced = isinstance(baumgarte_time, jax.core.Tracer)
+        if not traced and not float(baumgarte_time) > 0:
             raise ValueError(
                 f"Linkage.baumgarte_time = {baumgarte_time!r}: give T_bs > 0 [s] "
                 "(default 0.01)."
             )
-        self.baumgarte_time = float(baumgarte_time)
+        # an array (a parameter: a new value reuses compiled programs)
+        with jax.ensure_compile_time_eval():
+            self.baumgarte_time = jnp.asarray(baumgarte_time, dtype=float)
         if added_mass is not None:
             added_mass = jnp.asarray(added_mass, dtype=float)
             n_pts = build_layout(self.signature).n_points
