@@ -309,7 +309,7 @@ def test_auto_takes_tsit5_for_rigid_links_without_springs_and_compiles_nothing(
 ):
     """Rigid links with neither joint stiffness nor damping: K = D = 0, so the
     linearised state matrix [[0, I], [0, 0]] has only zero eigenvalues and the
-    eigenvalue test picks Tsit5. "auto" and the stiffness estimate know it from the
+    eigenvalue test picks Tsit5 (Dopri8 at a tight rtol). "auto" and the stiffness estimate know it from the
     model, without the program of M, K, D; that program (run here) gives K and D
     exactly 0 and M symmetric positive definite. A joint spring sends the decision
     back to the eigenvalues."""
@@ -321,6 +321,8 @@ def test_auto_takes_tsit5_for_rigid_links_without_springs_and_compiles_nothing(
     real, calls = S._linear_terms, []
     monkeypatch.setattr(S, "_linear_terms", lambda *a: calls.append(1) or real(*a))
     assert sj.integrate.auto_solver(bar, q0, 0.0, 100.0, 1e-3) == "tsit5"
+    # no stability bound at all: at a tight rtol accuracy sets the steps (Dopri8)
+    assert sj.integrate.auto_solver(bar, q0, 0.0, 3.0, 1e-8) == "dopri8"
     assert S.stiffness_estimate(bar, q0) == 0.0
     assert not calls, "auto computed M, K, D"
     M, K, D = (np.asarray(a) for a in real(bar, q0))
