@@ -7,7 +7,9 @@ on models of the same structure reuse one compilation, and all vmap over ``q``.
 """
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from .._jit import jit
@@ -121,4 +123,8 @@ def tip_pose(linkage: Linkage, q: ArrayLike, link: int = -1) -> Float[Array, "4 
     """
     link = linkage.n_links if link == -1 else link
     idx = linkage.tip_point(link)
-    return forward_kinematics(linkage, q)[idx]
+    g = forward_kinematics(linkage, q)
+    if isinstance(g, jax.core.Tracer):
+        return g[idx]
+    # indexing a concrete array compiles a program per shape: take it on the host
+    return jnp.asarray(np.asarray(g)[idx])

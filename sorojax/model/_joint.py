@@ -130,7 +130,11 @@ class Joint(eqx.Module):
         with jax.ensure_compile_time_eval():
             self.directions = jnp.asarray(directions)
             self.lead = jnp.asarray(lead)
-            self.pitch = jnp.asarray(pitch, dtype=float)  # traced if given traced
+            self.pitch = (  # traced if given traced
+                jnp.asarray(pitch, dtype=float)
+                if _traced(pitch)
+                else jnp.asarray(np.asarray(pitch, dtype=float))
+            )
         self.stiffness = _as_matrix("Joint.stiffness", stiffness, n)
         self.damping = _as_matrix("Joint.damping", damping, n)
 
@@ -165,7 +169,16 @@ class Joint(eqx.Module):
 
     def basis(self) -> Float[Array, "6 n"]:
         """The joint basis ``Phi_j`` (6 x n_dof), angular rows first."""
-        return self.directions + self.pitch * self.lead
+        parts = (self.directions, self.pitch, self.lead)
+        if any(_traced(x) for x in parts):
+            return self.directions + self.pitch * self.lead
+        # concrete (a model being built): on the host, no operation to compile
+        d, p, lead = (np.asarray(x) for x in parts)
+        return jnp.asarray(d + p * lead)
+
+
+def _traced(x) -> bool:
+    return any(isinstance(v, jax.core.Tracer) for v in jax.tree.leaves(x))
 
 
 def _directions(kind: str, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

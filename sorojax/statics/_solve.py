@@ -659,8 +659,14 @@ def solve_statics(
         atol=atol,
         differentiable=not _top_level(),
     )
-    failed = sol.result != RESULTS.successful
-    traced = isinstance(failed, jax.core.Tracer)
+    code = sol.result._value
+    traced = isinstance(code, jax.core.Tracer)
+    # (concrete: compared on the host; != on the arrays compiles a program)
+    failed = (
+        sol.result != RESULTS.successful
+        if traced
+        else int(code) != int(RESULTS.successful._value)
+    )
     if warn_unstable and not traced and not bool(failed) and not bool(sol.stable):
         warnings.warn(
             f"solve_statics converged to an UNSTABLE equilibrium: the tangent "
