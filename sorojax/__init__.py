@@ -89,6 +89,7 @@ _LAZY = {
     "sorosim_mechanics": ".model",
     "translation": ".model",
     "precompute": ".model._precompute",
+    "RecompilationWarning": "._recompile",
     "CriticalPoint": ".statics",
     "EquilibriumPath": ".statics",
     "ModelChoice": ".statics",
@@ -138,6 +139,7 @@ if TYPE_CHECKING:  # static analysers see the names as plain imports
     from ._jit import compile_mode as compile_mode
     from ._jit import compiler_options as compiler_options
     from ._jit import jit as jit
+    from ._recompile import RecompilationWarning as RecompilationWarning
     from ._results import RESULTS as RESULTS
     from ._results import StaticsSolution as StaticsSolution
     from ._sweep import sweep as sweep

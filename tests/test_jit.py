@@ -7,6 +7,8 @@ fall back to XLA's defaults when turned off or unknown, and the dynamics' right-
 side must be traced once per program however often diffrax calls it.
 """
 
+import warnings
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -324,3 +326,42 @@ def test_top_level_simulate_computes_efforts_in_a_program_of_their_own(
     for a, b in zip((top.q, top.qd, top.u, top.efforts), inside, strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-13)
     np.testing.assert_allclose(top.u[:, 0], _angle(top.t)[0], rtol=1e-14)
+
+
+def test_a_new_function_object_with_the_same_code_warns_once():
+    """A lambda made anew per call is a new static argument (a new program) each
+    time: the second object with the same code warns (RecompilationWarning), the same
+    object again does not, nor does an equinox.Partial (compared by contents), and
+    each code object warns once."""
+    import equinox as eqx
+
+    from sorojax._recompile import RecompilationWarning, note_function
+
+    def make(k):
+        return lambda t: k * t
+
+    first = make(1.0)
+    note_function(first, "u", "test")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        note_function(first, "u", "test")  # the same object: no warning
+        note_function(eqx.Partial(_angle), "u", "test")  # contents, not identity
+    with pytest.warns(RecompilationWarning, match="u is a new function object"):
+        note_function(make(2.0), "u", "test")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        note_function(make(3.0), "u", "test")  # warned once for this code
+
+
+def test_simulate_notes_its_function_arguments(arm):
+    """simulate checks ``u`` before any program is built (here n_save = 0 stops it
+    right after): a second lambda of the same code warns."""
+
+    def run():
+        sj.simulate(arm, 0.1, u=lambda t: jnp.stack([t]), n_save=0)
+
+    with pytest.raises(ValueError, match="n_save"):
+        run()
+    with pytest.warns(sj.RecompilationWarning, match="simulate: u is a new"):
+        with pytest.raises(ValueError, match="n_save"):
+            run()
