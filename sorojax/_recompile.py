@@ -53,3 +53,9 @@ def note_function(fn, what: str, caller: str) -> None:
         RecompilationWarning,
         stacklevel=3,
     )
+
+
+def note_hooks(linkage, caller: str) -> None:
+    """:func:`note_function` for a linkage's hooks (static fields of the model)."""
+    for name in ("custom_wrench", "custom_actuation", "actuator_strength"):
+        note_function(getattr(linkage, name, None), f"Linkage.{name}", caller)

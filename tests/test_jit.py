@@ -365,3 +365,27 @@ def test_simulate_notes_its_function_arguments(arm):
     with pytest.warns(sj.RecompilationWarning, match="simulate: u is a new"):
         with pytest.raises(ValueError, match="n_save"):
             run()
+
+
+def test_solve_statics_notes_the_linkage_hooks():
+    """A linkage rebuilt with a new hook object of the same code (a new program for
+    every call) warns in solve_statics, before anything compiles (a bad q0 stops it
+    right after)."""
+    rod = sj.SoftLink(
+        [
+            sj.Division(
+                0.3, sj.CircularSection(0.01), sj.LegendreBasis((0, 1, 0, 0, 0, 0), 0)
+            )
+        ],
+        sj.Material(1e6),
+    )
+
+    def build():
+        return sj.Linkage([rod], custom_wrench=lambda t, q, qd, kin: jnp.zeros((1, 6)))
+
+    for k in range(2):
+        lk = build()
+        ctx = pytest.warns(sj.RecompilationWarning, match="Linkage.custom_wrench")
+        with ctx if k else warnings.catch_warnings():
+            with pytest.raises(ValueError):
+                sj.solve_statics(lk, jnp.zeros(lk.n_dof + 1))

@@ -29,7 +29,7 @@ import optimistix as optx
 from jaxtyping import Array, ArrayLike
 
 from .._jit import _top_level, in_tiers, jit
-from .._recompile import note_function
+from .._recompile import note_function, note_hooks
 from .._results import RESULTS
 from ..dynamics._eom import (
     GeneralizedForce,
@@ -519,7 +519,7 @@ def simulate(
     if _top_level():  # a call of its own (not inside a user's trace)
         for fn, what in ((u_fn, "u"), (generalized_force, "generalized_force")):
             note_function(fn, what, "simulate")
-        _note_hooks(linkage, "simulate")
+        note_hooks(linkage, "simulate")
     if ts is None and n_save < 1:
         raise ValueError(f"n_save = {n_save}; give at least 1 save time.")
     q0, y0, ts_ = _initial_state(
@@ -647,16 +647,6 @@ def _initial_state(linkage: Linkage, q0, qd0, t0, t1, u_fn, u_const, n_save):
         q0, qd0 = q0.at[qi].set(qp), qd0.at[qi].set(qdp)
     y0 = jnp.concatenate([q0, qd0.astype(q0.dtype)])
     return q0, y0, None if n_save is None else jnp.linspace(t0, t1, n_save)
-
-
-def _note_hooks(linkage: Linkage, caller: str) -> None:
-    """:func:`note_function` for the linkage's hooks.
-
-    They are static fields: new objects with the same code compile every program
-    of the model again.
-    """
-    for name in ("custom_wrench", "custom_actuation", "actuator_strength"):
-        note_function(getattr(linkage, name), f"Linkage.{name}", caller)
 
 
 def _split_inputs(linkage: Linkage, u, dtype):

@@ -34,6 +34,7 @@ from jax import lax
 from jaxtyping import Array, ArrayLike
 
 from .._jit import _top_level, jit
+from .._recompile import note_hooks
 from .._results import RESULTS, StaticsSolution
 from ..dynamics._actuation import actuation_loads
 from ..dynamics._constraints import (
@@ -643,6 +644,8 @@ def solve_statics(
     # Defaults as arrays here, so that a call with and one without q0 or u share
     # one compiled program (and bad shapes fail before anything compiles).
     # (zeros made on the host: jnp.zeros would compile a program per size)
+    if _top_level():  # a call of its own: a new hook object means a new program
+        note_hooks(linkage, "solve_statics")
     q0 = _as_q(linkage, np.zeros(linkage.n_dof) if q0 is None else q0, "q0")
     u = as_inputs(linkage, None if u is None else jnp.asarray(u, float), q0.dtype)
     sol = _solve_statics(
