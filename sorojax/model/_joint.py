@@ -244,8 +244,7 @@ def _classify(directions: np.ndarray, lead: np.ndarray) -> tuple[str, tuple]:
 
 def _as_matrix(field: str, value, n: int) -> Array:
     # numpy for concrete values: a transfer at the end, no operation to compile
-    traced = any(isinstance(v, jax.core.Tracer) for v in jax.tree.leaves(value))
-    xp = jnp if traced else np
+    xp = jnp if _traced(value) else np
     arr = xp.asarray(value, dtype=float)
     if arr.ndim == 0:
         check_positive(field, value, allow_zero=True)

@@ -641,11 +641,12 @@ def solve_statics(
         ValueError: bad ``q0`` shape or ``load_steps`` < 1.
         RuntimeError: the solve failed and ``throw`` is True.
     """
+    top = _top_level()  # a call of its own, not inside a user's trace
+    if top:  # a new hook object means a new program
+        note_hooks(linkage, "solve_statics")
     # Defaults as arrays here, so that a call with and one without q0 or u share
     # one compiled program (and bad shapes fail before anything compiles).
     # (zeros made on the host: jnp.zeros would compile a program per size)
-    if _top_level():  # a call of its own: a new hook object means a new program
-        note_hooks(linkage, "solve_statics")
     q0 = _as_q(linkage, np.zeros(linkage.n_dof) if q0 is None else q0, "q0")
     u = as_inputs(linkage, None if u is None else jnp.asarray(u, float), q0.dtype)
     sol = _solve_statics(
@@ -660,7 +661,7 @@ def solve_statics(
         max_steps=max_steps,
         rtol=rtol,
         atol=atol,
-        differentiable=not _top_level(),
+        differentiable=not top,
     )
     code = sol.result._value
     traced = isinstance(code, jax.core.Tracer)
