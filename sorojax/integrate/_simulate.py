@@ -95,8 +95,9 @@ host, once per call) and picks
   then set by accuracy, where an 8th-order method takes far fewer (the driven
   four-bar over 3 s at rtol 1e-8: 500 steps, 0.33 s, against Tsit5's 1703 steps,
   0.64 s; the program compiles in the same time). Where fast modes must be
-  resolved anyway Tsit5 stays cheaper (the manual's hybrid at rtol 1e-8: 2.9 s
-  against 3.2 s; at rtol 1e-6 Tsit5 wins everywhere);
+  resolved anyway Dopri8 gains nothing (the manual's hybrid over 2 s: at rtol 1e-6
+  Tsit5 1.5-1.7 s against 1.9-2.2 s, at rtol 1e-8 about even, 2.9 / 3.5 s against
+  3.2 / 3.4 s in two runs; ``benchmarks/auto_solver.py``);
 * else ``"tsit5"``.
 
 Under an outer jit/vmap/grad with traced parameters no host analysis is possible:
