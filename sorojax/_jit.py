@@ -38,19 +38,37 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-CPU_OPTIONS: dict[str, Any] = {"xla_cpu_use_fusion_emitters": False}
+CPU_OPTIONS: dict[str, Any] = {
+    # The classic CPU emitters: shorter compiles of sorojax's many small fusions.
+    "xla_cpu_use_fusion_emitters": False,
+    # Matrix products on the calling thread: sorojax's are tiny (6 x 6 blocks, n_dof
+    # up to ~60), and handing each to Eigen's thread pool cost more than the product
+    # (warm speed 1.0-2.0x, compile unchanged: benchmarks/eigen_threads.py).
+    "xla_cpu_multi_thread_eigen": False,
+}
 
 
 def compiler_options() -> dict[str, Any]:
     """XLA options sorojax compiles its programs with (a fresh dict each call).
 
-    ``{"xla_cpu_use_fusion_emitters": False}`` on CPU when this XLA knows it, else
-    ``{}`` (other backends, older or newer XLA, ``SOROJAX_XLA_OPTIONS=off``). Use it
-    for your own jit around sorojax calls::
+    On CPU, those of :data:`CPU_OPTIONS` that this XLA knows
+    (``{"xla_cpu_use_fusion_emitters": False, "xla_cpu_multi_thread_eigen": False}``
+    with the jaxlib sorojax is tested with); ``{}`` on other backends and with
+    ``SOROJAX_XLA_OPTIONS=off``. Use it for your own jit around sorojax calls::
 
         jax.jit(f, compiler_options=sorojax.compiler_options())
     """
     return dict(_probed_options())
+
+
+def _accepted(options: dict[str, Any]) -> bool:
+    """Whether this XLA compiles a tiny program with ``options``."""
+    try:
+        probe = jax.jit(lambda x: jnp.sin(x) + x, compiler_options=options)
+        probe.lower(np.zeros(3)).compile()  # host zeros: no program of their own
+    except Exception:  # noqa: BLE001 - an XLA without the option: use its defaults
+        return False
+    return True
 
 
 @functools.cache
@@ -59,12 +77,10 @@ def _probed_options() -> dict[str, Any]:
         return {}
     if jax.default_backend() != "cpu":
         return {}
-    try:
-        probe = jax.jit(lambda x: jnp.sin(x) + x, compiler_options=CPU_OPTIONS)
-        probe.lower(np.zeros(3)).compile()  # host zeros: no program of their own
-    except Exception:  # noqa: BLE001 - an XLA without the option: use its defaults
-        return {}
-    return dict(CPU_OPTIONS)
+    if _accepted(CPU_OPTIONS):  # one probe where XLA knows them all
+        return dict(CPU_OPTIONS)
+    # an older or newer XLA: each option it knows (an unknown one fails the compile)
+    return {k: v for k, v in CPU_OPTIONS.items() if _accepted({k: v})}
 
 
 try:  # private: a JAX without it gets XLA's defaults everywhere

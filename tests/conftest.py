@@ -27,15 +27,19 @@ if os.environ.get("SOROJAX_TEST_XLA_OPT", "0") != "default":
     ).strip()
     os.environ["SOROJAX_COMPILE"] = "full"
 
-# sorojax compiles its own programs with XLA's classic CPU emitters
-# (sorojax.compiler_options(): 20-35% faster compiles, same arithmetic); the tests'
-# own jax.jit programs (gradient checks, vmaps, references) get them too: set as a
-# flag, on the jaxlib line where the option is verified (an unknown XLA flag is
-# fatal). tests/test_jit.py compiles with XLA's defaults explicitly to compare.
-# (A gradient check through simulate: 16.5 -> 12.3 s.)
+# sorojax compiles its own programs with its CPU options (sorojax.compiler_options():
+# XLA's classic emitters, 20-35% faster compiles, and matrix products on the calling
+# thread, same arithmetic); the tests' own jax.jit programs (gradient checks, vmaps,
+# references) get them too: set as flags, on the jaxlib line where the options are
+# verified (an unknown XLA flag is fatal). tests/test_jit.py compiles with XLA's
+# defaults explicitly to compare. (A gradient check through simulate: 16.5 -> 12.3 s.)
 if importlib.metadata.version("jaxlib").startswith("0.10."):
     os.environ["XLA_FLAGS"] = " ".join(
-        [os.environ.get("XLA_FLAGS", ""), "--xla_cpu_use_fusion_emitters=false"]
+        [
+            os.environ.get("XLA_FLAGS", ""),
+            "--xla_cpu_use_fusion_emitters=false",
+            "--xla_cpu_multi_thread_eigen=false",
+        ]
     ).strip()
 
 import jax  # noqa: E402
