@@ -381,3 +381,29 @@ def test_equilibrium_path_chart_draws_stable_solid_and_unstable_dashed():
     assert sum(ln.get_marker() == "^" for ln in ax.get_lines()) == 2
     with pytest.raises(ValueError, match="coordinate"):
         plot_equilibrium_path(path, 5)
+
+
+def test_section_extents_at_many_points_equal_one_point_at_a_time():
+    """The figures take every ring's half-widths in one call of ``extent`` on an
+    array of X1 (chunks of 64, the last padded); they must equal the point-by-point
+    values to rounding, for every section shape, a taper, a custom profile written
+    for arrays and one written for a scalar only (a Python ``if``: evaluated point
+    by point instead), and keep the points' order."""
+    from sorojax.viz._plot import section_extents
+
+    def step_radius(X1):  # not for arrays: `if` needs a Python bool
+        return 0.02 if float(X1) < 0.5 else 0.01
+
+    sections = [
+        sorojax.CircularSection((0.02, 0.005)),
+        sorojax.RectangularSection(0.02, (0.04, 0.01)),
+        sorojax.EllipticalSection(0.03, 0.01),
+        sorojax.CircularSection(lambda X1: 0.01 + 0.005 * jnp.sin(3.0 * X1)),
+        sorojax.CircularSection(step_radius),
+    ]
+    X1 = np.concatenate([np.linspace(0.0, 1.0, 70), [0.13, 0.5]])  # 2 chunks of 64
+    for section in sections:
+        hy, hz = section_extents(section, X1)
+        assert hy.shape == hz.shape == X1.shape
+        one = np.array([[float(v) for v in section.extent(x)] for x in X1])
+        np.testing.assert_allclose(np.stack([hy, hz], -1), one, rtol=1e-14)

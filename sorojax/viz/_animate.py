@@ -16,6 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..io._files import as_path, check_target, writing
+from ._plot import section_extents
 
 VIDEO_SUFFIXES = (".mp4", ".gif")
 """Suffixes :func:`animate` writes: ``.mp4`` needs ffmpeg, ``.gif`` uses Pillow."""
@@ -89,9 +90,8 @@ def _section_pad(linkage) -> float:
             sections.append(link.section)
     pad = 0.0
     for section in sections:
-        for x in X1:
-            hy, hz = (float(np.asarray(v, dtype=float)) for v in section.extent(x))
-            pad = max(pad, math.hypot(hy, hz))
+        hy, hz = section_extents(section, X1)
+        pad = max(pad, float(np.hypot(hy, hz).max()))
     return pad
 
 

@@ -39,17 +39,50 @@ def _scalar(x) -> float:
     return float(np.asarray(x, dtype=float))
 
 
-def _outline(section, X1: float, n_circle: int) -> np.ndarray:
-    """Section outline at ``X1`` as local ``(y, z)`` points, shape ``(n, 2)``.
+_EXTENT_CHUNK = 64
+"""X1 points per call of a section's ``extent`` in :func:`section_extents`."""
+
+
+def section_extents(section, X1) -> tuple[np.ndarray, np.ndarray]:
+    """Half-widths ``(along y, along z)`` [m] of ``section`` at the points ``X1``.
+
+    ``section.extent`` is called on chunks of :data:`_EXTENT_CHUNK` points (the last
+    padded), where one call per point ran its few eager operations each time (0.4 s
+    for the manual hybrid's figure); one array size, so each eager operation
+    compiles once per process. A custom profile that does not take an array of X1
+    (a Python ``if``, say) is evaluated point by point, as before.
+    """
+    X1 = np.asarray(X1, dtype=float).reshape(-1)
+    m = X1.shape[0]
+    padded = np.pad(X1, (0, -m % _EXTENT_CHUNK), mode="edge")
+    try:
+        parts = [
+            [
+                np.broadcast_to(np.asarray(v, dtype=float), chunk.shape)
+                for v in section.extent(chunk)
+            ]
+            for chunk in padded.reshape(-1, _EXTENT_CHUNK)
+        ]
+        hy, hz = (np.concatenate(h)[:m] for h in zip(*parts, strict=True))
+    except Exception:  # noqa: BLE001 - a scalar-only profile: point by point
+        hy, hz = np.array(
+            [[_scalar(v) for v in section.extent(float(x))] for x in X1]
+        ).T.reshape(2, m)
+    return hy, hz
+
+
+def _outlines(section, X1, n_circle: int) -> np.ndarray:
+    """Section outlines at the points ``X1`` as local ``(y, z)`` points ``(m, n, 2)``.
 
     A rectangle gives its four corners; any other section an ellipse of ``n_circle``
     points with the section's half-widths (a circle for a circular section).
     """
-    hy, hz = (_scalar(v) for v in section.extent(X1))
+    hy, hz = section_extents(section, X1)
     if isinstance(section, RectangularSection):
-        return np.array([[hy, hz], [-hy, hz], [-hy, -hz], [hy, -hz]])
+        corners = np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
+        return corners * np.stack([hy, hz], axis=-1)[:, None, :]
     theta = 2.0 * np.pi * np.arange(n_circle) / n_circle
-    return np.stack([hy * np.cos(theta), hz * np.sin(theta)], axis=1)
+    return np.stack([hy[:, None] * np.cos(theta), hz[:, None] * np.sin(theta)], axis=-1)
 
 
 def _ring(g: np.ndarray, yz: np.ndarray) -> np.ndarray:
@@ -275,11 +308,9 @@ def plot_configuration(
             ):
                 idx = dl.first_point + np.arange(len(dl.X1))
                 gd, X1 = _densify(g[idx], np.asarray(dl.X1, dtype=float), n_sub)
+                outlines = _outlines(div.section, X1, n_circle)
                 rings = np.stack(
-                    [
-                        _ring(gj, _outline(div.section, x, n_circle))
-                        for gj, x in zip(gd, X1, strict=True)
-                    ]
+                    [_ring(gj, yz) for gj, yz in zip(gd, outlines, strict=True)]
                 )
                 polys = _tube_polygons(rings, cap_start=k == 1, cap_end=k == nd)
                 _add_body(
@@ -302,11 +333,9 @@ def plot_configuration(
                 ge = gc.copy()
                 ge[:3, 3] = gc[:3, 3] + x_local * gc[:3, 0]
                 ends.append(ge)
+            outlines = _outlines(link.section, (0.0, 1.0), n_circle)
             rings = np.stack(
-                [
-                    _ring(ge, _outline(link.section, X1, n_circle))
-                    for ge, X1 in zip(ends, (0.0, 1.0), strict=True)
-                ]
+                [_ring(ge, yz) for ge, yz in zip(ends, outlines, strict=True)]
             )
             polys = _tube_polygons(rings, cap_start=True, cap_end=True)
             _add_body(
