@@ -15,7 +15,7 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from ._actuation import Cable, CableAnchor, CableSpan, JointActuator
-from ._checks import check_se3, check_shape
+from ._checks import check_se3, check_shape, is_concrete
 from ._closure import ClosedLoopJoint
 from ._layout import Layout, build_layout
 from ._link import AbstractLink, RigidLink, SoftLink
@@ -124,8 +124,11 @@ class Linkage(eqx.Module):
         else:
             placements = jnp.asarray(placements, dtype=float)
             check_shape("Linkage.placements", placements, (n, 4, 4))
+            # a concrete stack is checked on the host (indexing the device array
+            # ran one eager program per link)
+            host = placements if not is_concrete(placements) else np.asarray(placements)
             for i in range(n):
-                check_se3(f"Linkage.placements[{i}]", placements[i])
+                check_se3(f"Linkage.placements[{i}]", host[i])
         check_shape("Linkage.gravity", gravity, (3,))
         if isinstance(point_wrenches, PointWrench):
             point_wrenches = (point_wrenches,)
