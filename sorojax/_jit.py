@@ -43,7 +43,7 @@ CPU_OPTIONS: dict[str, Any] = {
     "xla_cpu_use_fusion_emitters": False,
     # Matrix products on the calling thread: sorojax's are tiny (6 x 6 blocks, n_dof
     # up to ~60), and handing each to Eigen's thread pool cost more than the product
-    # (warm speed 1.0-2.0x, compile unchanged: benchmarks/eigen_threads.py).
+    # (warm 1.0-2.0x, compiles within noise: benchmarks/runtime_options.py).
     "xla_cpu_multi_thread_eigen": False,
 }
 

@@ -1,13 +1,22 @@
-"""XLA's multi-threaded Eigen calls on and off, side by side (warm speed and compile).
+"""XLA's CPU runtime options on and off, side by side (warm speed and compile).
 
 sorojax's models are small: a right-hand side or a Newton iteration is a few hundred
-tiny operations (6 x 6 blocks, n_dof of 3 to 60), and XLA's CPU runtime hands each
-matrix product to Eigen on its intra-op thread pool by default
-(``xla_cpu_multi_thread_eigen``). For products this small the hand-off costs more
-than the product. Each program below is compiled twice in one process, with
-sorojax's CPU options and ``xla_cpu_multi_thread_eigen`` False ("single") or True
-("multi", XLA's default), and the warm runs are interleaved (single, multi, single,
-...) so that the machine's drift hits both alike. The programs:
+tiny operations (6 x 6 blocks, n_dof of 3 to 60). Two of XLA's CPU defaults are
+made for large arrays:
+
+* ``--option eigen``: ``xla_cpu_multi_thread_eigen`` (XLA's default True): each
+  matrix product handed to Eigen on the intra-op thread pool; "on" sets False, as
+  ``sorojax.compiler_options()`` does;
+* ``--option ynn``: ``xla_cpu_experimental_ynn_fusion_type`` (XLA's default: some
+  products and their neighbours as YNNPACK library fusions); "on" sets ``""`` (no
+  such fusions: the products stay XLA's own). sorojax does not set it (faster warm
+  runs, longer compiles: ``benchmarks/README.md``, tenth round).
+
+Each program below is traced and lowered once and compiled by XLA ``--compiles``
+times with the option set ("on") and at XLA's default ("off"), the other options as
+``sorojax.compiler_options()``, in alternating order (medians reported); the warm
+runs are interleaved (on, off, on, ...) so that the machine's drift hits both
+alike. The programs:
 
 * ``rod3 dynamics``: 3 s of the 3-DoF rod with a tip mass of
   ``examples/system_identification.py`` (ROS34PW2, 300 constant steps), and its
@@ -23,9 +32,13 @@ sorojax's CPU options and ``xla_cpu_multi_thread_eigen`` False ("single") or Tru
 
 Run::
 
-    .venv/bin/python benchmarks/eigen_threads.py [--repeats 5] [--order single multi]
+    .venv/bin/python benchmarks/runtime_options.py --option eigen|ynn \
+        [--repeats 5] [--compiles 3] [--order on off]
 
-Prints a table and writes ``benchmarks/results/eigen_threads_<first>_first.json``.
+Prints a table and writes
+``benchmarks/results/runtime_options_<option>_<first>_first.json``. (Stop 33's first
+runs of the eigen comparison, under the script's first name, are
+``results/eigen_threads_*.json`` with "single" for on and "multi" for off.)
 """
 
 import argparse
@@ -50,7 +63,11 @@ sys.path.insert(0, str(pathlib.Path(__file__).parent.parent / "examples"))
 from _common import environment  # noqa: E402
 
 RESULTS_DIR = pathlib.Path(__file__).parent / "results"
-FLAG = "xla_cpu_multi_thread_eigen"
+OPTIONS = {
+    "eigen": ("xla_cpu_multi_thread_eigen", False),
+    "ynn": ("xla_cpu_experimental_ynn_fusion_type", ""),
+}
+"""``--option``: the XLA option and its "on" value."""
 
 
 def programs():
@@ -133,30 +150,34 @@ def cable_loop_c(compiled, Ts):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--option", choices=sorted(OPTIONS), default="eigen")
     ap.add_argument("--repeats", type=int, default=5, help="timed runs of each")
-    ap.add_argument(
-        "--order", nargs=2, default=["single", "multi"], choices=["single", "multi"]
-    )
+    ap.add_argument("--compiles", type=int, default=3, help="compiles of each")
+    ap.add_argument("--order", nargs=2, default=["on", "off"], choices=["on", "off"])
     args = ap.parse_args(argv)
-    if FLAG not in sj.compiler_options():
-        raise SystemExit(f"this XLA does not know {FLAG}: nothing to compare")
-    base = {k: v for k, v in sj.compiler_options().items() if k != FLAG}
-    variants = {"single": {**base, FLAG: False}, "multi": {**base, FLAG: True}}
+    flag, value = OPTIONS[args.option]
+    base = {k: v for k, v in sj.compiler_options().items() if k != flag}
+    variants = {"on": {**base, flag: value}, "off": base}
     out = {
         "environment": environment(),
+        "option": flag,
         "order": args.order,
         "options": variants,
         "programs": {},
     }
-    print(f"jax {jax.__version__}; compiled first: {args.order[0]}")
+    print(f"jax {jax.__version__}; {flag}; compiled first: {args.order[0]}")
     for name, (fn, fn_args, run) in programs().items():
-        compiled, compile_s = {}, {}
-        for mode in args.order:
-            t0 = time.perf_counter()
-            compiled[mode] = (
-                jax.jit(fn, compiler_options=variants[mode]).lower(*fn_args).compile()
-            )
-            compile_s[mode] = time.perf_counter() - t0
+        # One trace and lowering; XLA compiles it --compiles times per variant, the
+        # order alternating (a debug option that matches nothing makes each compile
+        # a new cache key, so none is served from JAX's in-memory cache).
+        lowered = jax.jit(fn).lower(*fn_args)
+        compiled, compile_s = {}, {m: [] for m in args.order}
+        for i in range(args.compiles):
+            for mode in args.order if i % 2 == 0 else args.order[::-1]:
+                options = {**variants[mode], "xla_dump_hlo_module_re": f"^$nomatch{i}"}
+                t0 = time.perf_counter()
+                compiled[mode] = lowered.compile(compiler_options=options)
+                compile_s[mode].append(time.perf_counter() - t0)
 
         def call(c, run=run, fn_args=fn_args):
             return run(c) if run is not None else c(*fn_args)
@@ -170,20 +191,21 @@ def main(argv=None):
                 jax.block_until_ready(call(c))
                 times[mode].append(time.perf_counter() - t0)
         med = {m: statistics.median(v) for m, v in times.items()}
+        comp = {m: statistics.median(v) for m, v in compile_s.items()}
         out["programs"][name] = {
+            "compile_median_s": comp,
             "compile_s": compile_s,
             "warm_median_s": med,
             "warm_s": times,
         }
         print(
-            f"{name:26s} compile single {compile_s['single']:5.2f} s, multi "
-            f"{compile_s['multi']:5.2f} s; warm single {1e3 * med['single']:8.1f} ms,"
-            f" multi {1e3 * med['multi']:8.1f} ms (multi/single "
-            f"{med['multi'] / med['single']:.2f})",
+            f"{name:26s} compile on {comp['on']:5.2f} s, off {comp['off']:5.2f} s; "
+            f"warm on {1e3 * med['on']:8.1f} ms, "
+            f"off {1e3 * med['off']:8.1f} ms (off/on {med['off'] / med['on']:.2f})",
             flush=True,
         )
     RESULTS_DIR.mkdir(parents=True, exist_ok=True)
-    path = RESULTS_DIR / f"eigen_threads_{args.order[0]}_first.json"
+    path = RESULTS_DIR / f"runtime_options_{args.option}_{args.order[0]}_first.json"
     path.write_text(json.dumps(out, indent=2))
     print(f"wrote {path}")
 
