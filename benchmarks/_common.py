@@ -78,6 +78,26 @@ def timed(f, *args, repeats, warmup=True):
     return statistics.median(ts), min(ts)
 
 
+def interleaved_times(calls, repeats):
+    """Warm wall times [s] of several variants of one computation, interleaved.
+
+    ``calls`` maps names to zero-argument callables; each is called once to warm
+    up, then ``repeats`` rounds call every variant in turn (blocked), so that the
+    machine's drift hits them alike. Returns ``{name: [seconds, ...]}``.
+    """
+    import jax
+
+    for call in calls.values():
+        jax.block_until_ready(call())
+    times = {name: [] for name in calls}
+    for _ in range(repeats):
+        for name, call in calls.items():
+            t0 = time.perf_counter()
+            jax.block_until_ready(call())
+            times[name].append(time.perf_counter() - t0)
+    return times
+
+
 def compile_time(jitted, *args):
     """(compiled executable, seconds to trace + lower + compile)."""
     t0 = time.perf_counter()

@@ -42,6 +42,7 @@ runs of the eigen comparison, under the script's first name, are
 """
 
 import argparse
+import functools
 import json
 import pathlib
 import statistics
@@ -60,7 +61,7 @@ import sorojax as sj  # noqa: E402
 sys.path.insert(0, str(pathlib.Path(__file__).parent))
 sys.path.insert(0, str(pathlib.Path(__file__).parent.parent / "examples"))
 
-from _common import environment  # noqa: E402
+from _common import environment, interleaved_times  # noqa: E402
 
 RESULTS_DIR = pathlib.Path(__file__).parent / "results"
 OPTIONS = {
@@ -91,9 +92,6 @@ def programs():
     rng = np.random.default_rng(0)
     t40 = jnp.asarray(rng.uniform(0.0, 10.0, (40, 4)))
     t256 = jnp.asarray(rng.uniform(0.0, 10.0, (256, 4)))
-
-    def cable_loop(Ts):
-        return [cable(T) for T in Ts]
 
     from statics import solve_one  # benchmarks/statics.py: the 30-DoF rod
 
@@ -133,7 +131,7 @@ def programs():
     return {
         "rod3 dynamics": (sid.tip_xz, (log_p, ts, dt), None),
         "rod3 dynamics + Jacobian": (sid._tip_and_jacobian, (log_p, ts, dt), None),
-        "cable statics x40 (loop)": (cable, (t40[0],), lambda c: cable_loop_c(c, t40)),
+        "cable statics x40 (loop)": (cable, (t40[0],), lambda c: [c(T) for T in t40]),
         "cable statics vmap 256": (jax.vmap(cable), (t256,), None),
         "statics30": (solve_one, (jnp.asarray(5.0),), None),
         "grad free fall 1 s": (jax.grad(tip_z), (jnp.asarray(1.0),), None),
@@ -141,11 +139,6 @@ def programs():
         "hybrid statics": (h_statics, (jnp.array([-jnp.pi / 4, 50.0]),), None),
         "hybrid dynamics 1 s": (h_dynamics, (rest,), None),
     }
-
-
-def cable_loop_c(compiled, Ts):
-    """The compiled single-case program called once per tension set."""
-    return [compiled(T) for T in Ts]
 
 
 def main(argv=None):
@@ -179,17 +172,15 @@ def main(argv=None):
                 compiled[mode] = lowered.compile(compiler_options=options)
                 compile_s[mode].append(time.perf_counter() - t0)
 
-        def call(c, run=run, fn_args=fn_args):
-            return run(c) if run is not None else c(*fn_args)
-
-        for c in compiled.values():  # warm-up
-            jax.block_until_ready(call(c))
-        times = {m: [] for m in compiled}
-        for _ in range(args.repeats):
-            for mode, c in compiled.items():
-                t0 = time.perf_counter()
-                jax.block_until_ready(call(c))
-                times[mode].append(time.perf_counter() - t0)
+        times = interleaved_times(
+            {
+                m: functools.partial(run, c)
+                if run is not None
+                else functools.partial(c, *fn_args)
+                for m, c in compiled.items()
+            },
+            args.repeats,
+        )
         med = {m: statistics.median(v) for m, v in times.items()}
         comp = {m: statistics.median(v) for m, v in compile_s.items()}
         out["programs"][name] = {

@@ -19,6 +19,7 @@ Prints a table and writes ``benchmarks/results/xla_options_<order>.json``.
 """
 
 import argparse
+import functools
 import json
 import os
 import pathlib
@@ -34,6 +35,7 @@ jax.config.update("jax_enable_x64", True)
 
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
+from _common import interleaved_times  # noqa: E402
 
 import sorojax as sj  # noqa: E402
 from sorojax._mechanisms import cable_manipulator  # noqa: E402
@@ -101,14 +103,10 @@ def main(argv=None):
             jitted = jax.jit(fn, compiler_options=opts if mode == "on" else None)
             compiled[mode] = jitted.lower(*fn_args).compile()
             compile_s[mode] = time.perf_counter() - t0
-        for c in compiled.values():  # warm-up
-            jax.block_until_ready(run(c))
-        times = {m: [] for m in compiled}
-        for _ in range(3 if "dynamics" in name else args.repeats):
-            for mode, c in compiled.items():
-                t0 = time.perf_counter()
-                jax.block_until_ready(run(c))
-                times[mode].append(time.perf_counter() - t0)
+        times = interleaved_times(
+            {m: functools.partial(run, c) for m, c in compiled.items()},
+            3 if "dynamics" in name else args.repeats,
+        )
         med = {m: statistics.median(v) for m, v in times.items()}
         out["programs"][name] = {"compile_s": compile_s, "warm_median_s": med}
         print(
