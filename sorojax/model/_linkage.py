@@ -126,7 +126,7 @@ class Linkage(eqx.Module):
             check_shape("Linkage.placements", placements, (n, 4, 4))
             # a concrete stack is checked on the host (indexing the device array
             # ran one eager program per link)
-            host = placements if not is_concrete(placements) else np.asarray(placements)
+            host = np.asarray(placements) if is_concrete(placements) else placements
             for i in range(n):
                 check_se3(f"Linkage.placements[{i}]", host[i])
         check_shape("Linkage.gravity", gravity, (3,))
@@ -165,8 +165,7 @@ class Linkage(eqx.Module):
         for k, c in enumerate(closed_loops):
             _check_closed_loop(k, c, n)
         self.closed_loops = closed_loops
-        traced = isinstance(baumgarte_time, jax.core.Tracer)
-        if not traced and not float(baumgarte_time) > 0:
+        if is_concrete(baumgarte_time) and not float(baumgarte_time) > 0:
             raise ValueError(
                 f"Linkage.baumgarte_time = {baumgarte_time!r}: give T_bs > 0 [s] "
                 "(default 0.01)."

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..io._files import as_path, check_target, writing
-from ._plot import section_extents
+from ._plot import _set_equal_limits, plot_configuration, section_extents
 
 VIDEO_SUFFIXES = (".mp4", ".gif")
 """Suffixes :func:`animate` writes: ``.mp4`` needs ffmpeg, ``.gif`` uses Pillow."""
@@ -189,8 +189,6 @@ def animate(
     """
     import matplotlib.pyplot as plt
     from matplotlib import animation
-
-    from ._plot import _set_equal_limits, plot_configuration
 
     path = as_path(path)
     for name, value in (("fps", fps), ("speed", speed)):
