@@ -194,6 +194,65 @@ def test_dynamics_right_hand_side_is_traced_once(arm, monkeypatch):
     assert 1 <= len(calls) <= 2, f"constrained dynamics traced {len(calls)} times"
 
 
+def test_traced_once_inlines_one_trace_into_every_program():
+    """A :func:`sorojax._jit.traced_once` function runs its Python once per argument
+    structure and shape: later programs (and jvp, vmap, grad of it) reuse the cached
+    jaxpr, inlined (no call in the program), with the plain function's values."""
+    calls = []
+
+    def body(x, k):
+        calls.append(1)
+        return jnp.sin(x) * k + jnp.cumsum(x)
+
+    f = sjit.traced_once(body)
+    x = jnp.linspace(0.1, 1.0, 5)
+    a = jax.make_jaxpr(lambda x: f(x, 2.0) + 1.0)(x)
+    jax.make_jaxpr(lambda x: jax.vmap(lambda y: f(y, 2.0))(jnp.stack([x, x])))(x)
+    grad = jax.jit(jax.grad(lambda x: jnp.sum(f(x, 2.0) ** 2)))(x)
+    assert len(calls) == 1  # one trace for the three programs
+    names = [e.params.get("name") for e in a.jaxpr.eqns if "jaxpr" in e.params]
+    assert "body" not in names  # inlined: its equations, not a call
+    assert "sin" in [e.primitive.name for e in a.jaxpr.eqns]
+    plain = jax.grad(lambda x: jnp.sum(body(x, 2.0) ** 2))(x)
+    np.testing.assert_allclose(grad, plain, rtol=1e-14)
+    jax.make_jaxpr(lambda x: f(x, 3.0))(x)  # a new static value: a new trace
+    assert len(calls) == 3  # (the eager plain grad above traced body once more)
+
+
+def test_a_model_is_precomputed_once_for_all_its_programs(monkeypatch):
+    """:func:`sorojax.precompute` (bases, sections, K, D) is traced once per linkage
+    structure, not once per program: statics, kinematics and dynamics of one model
+    share it (a structure no other test builds, so the count starts at zero)."""
+    import sorojax.model._precompute as pre
+
+    calls = []
+    real = pre._precompute
+
+    def counting(linkage):
+        calls.append(1)
+        return real(linkage)
+
+    monkeypatch.setattr(pre, "_precompute", counting)
+    rod = sj.SoftLink(
+        [
+            sj.Division(
+                0.37,
+                sj.CircularSection(0.011),
+                sj.LegendreBasis((0, 1, 0, 0, 0, 0), 2),
+                n_gauss=7,
+            )
+        ],
+        sj.Material(2e6, 0.5),
+    )
+    lk = sj.Linkage([rod], gravity=(0, 0, -9.81))
+    q = jnp.zeros(lk.n_dof)
+    jax.eval_shape(lambda: sj.solve_statics(lk, q).q)
+    jax.eval_shape(lambda: sj.forward_kinematics(lk, q))
+    jax.eval_shape(lambda: sj.mass_matrix(lk, q))
+    jax.eval_shape(lambda: sj.simulate(lk, 0.1, solver="tsit5", n_save=3).q)
+    assert len(calls) == 1
+
+
 def test_compile_mode_reads_the_environment(monkeypatch):
     """``SOROJAX_COMPILE`` picks the tiers; unset or empty is "tiered"; anything else
     is an error that names the variable, the value and the choices."""
