@@ -97,12 +97,18 @@ def _top_level() -> bool:
 def traced_once(fun: Callable) -> Callable:
     """``fun`` as an inlined ``eqx.filter_jit``: traced once, reused in every program.
 
-    Inside a trace its equations go into the calling program as if traced there (the
-    same HLO, no call boundary), but JAX keeps the jaxpr of each argument structure
-    and shape, so the programs of one model (statics, dynamics, queries) trace the
-    Python once; later calls re-emit the cached equations (~10x faster), and ``jvp``
-    and ``vmap`` of it transform the cached jaxpr. For functions of arrays and
-    hashable static values only (a NumPy array argument would become a traced input).
+    Inside a trace its equations go into the calling program as if traced there (no
+    call boundary), but JAX keeps the jaxpr of each argument structure and shape:
+    later programs re-emit the cached equations (~10x faster than running the
+    Python again). It pays for functions that many programs call with the same
+    arguments and without tangents (:func:`sorojax.model.precompute`). Under
+    ``jvp`` or ``vmap`` JAX transforms the cached jaxpr, which on a first call costs
+    the primal trace on top: measured by traced Python calls, the kinematic passes
+    wrapped this way traced the manual hybrid's programs 3 % faster but the
+    continuation's corrector (a forward-mode Jacobian of them) 12 % slower
+    (benchmarks/README.md, eleventh round), so they are not. For functions of arrays
+    and hashable static values only (a NumPy array argument would become a traced
+    input).
     """
     return eqx.filter_jit(fun, inline=True)
 

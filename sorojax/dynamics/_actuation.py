@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from .._jit import jit, traced_once
+from .._jit import jit
 from ..kinematics._api import Kinematics, _as_q
 from ..model._actuation import Cable, CableSpan, JointActuator
 from ..model._linkage import Linkage
@@ -201,7 +201,6 @@ def cable_lengths_from_data(linkage: Linkage, data: LinkageData, q) -> Array:
     return jnp.stack([cable_length(linkage, data, c, q, g) for c in cables])
 
 
-@traced_once
 def cable_loads(linkage: Linkage, data: LinkageData, q, tensions, g):
     """Generalised force ``-sum_c T_c dl_c/dq`` split as ``(Q_spans, W)``.
 

@@ -25,7 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from .._jit import jit, traced_once
+from .._jit import jit
 from ..kinematics._api import _as_q
 from ..lie import Ad_inv, ad, hat, log_se3
 from ..model._joint import perpendicular_pair
@@ -59,7 +59,6 @@ def _closure_error(c, rel) -> Array:
     return jnp.asarray(c.constrained_basis()).T @ jnp.concatenate([w, p])
 
 
-@traced_once
 def closure_errors_from_poses(linkage: Linkage, g) -> Array:
     """Errors of all closed-loop joints, ``(n_constraints,)``, from point poses."""
     out = []
@@ -113,7 +112,6 @@ def _error_and_derivative(c, rel):
     return e, D
 
 
-@traced_once
 def closure_errors_and_wrenches(linkage: Linkage, g, mu):
     """``(e, W)``: closure errors and the body wrenches of ``A^T mu``.
 
@@ -142,7 +140,6 @@ def closure_errors_and_wrenches(linkage: Linkage, g, mu):
     return jnp.concatenate(errors), W
 
 
-@traced_once
 def constraint_terms_from_kinematics(linkage: Linkage, g, J, eta, etadot):
     """``(e, A, Adot qd)`` from the point poses, body Jacobians, twists and rates.
 

@@ -12,7 +12,6 @@ Jacobians are at hand) or the backward recursion of
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._jit import traced_once
 from ..model._linkage import Linkage
 from ..model._precompute import LinkageData
 from ._wrench_recursion import force_from_wrenches, poses_with_records
@@ -53,7 +52,6 @@ def custom_wrenches(linkage: Linkage, data: LinkageData, t, q, qd, kin) -> Array
     return data.point_weight[:, None] * W
 
 
-@traced_once
 def external_wrenches(linkage: Linkage, data: LinkageData, t, g) -> Array:
     """Gravity and point wrenches at every significant point (body frames, weighted)."""
     return gravity_wrenches(data, g) + point_wrenches(linkage, t, g)

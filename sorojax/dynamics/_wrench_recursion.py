@@ -18,7 +18,6 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._jit import traced_once
 from ..kinematics._recursion import (
     _Ad,
     chain_layout,
@@ -38,17 +37,11 @@ def poses_with_records(data: LinkageData, q):
     links' chains in one batch (:mod:`sorojax.kinematics._recursion`); the loop
     over the tree only carries the tip poses.
     """
-    g, k, ct = _poses_and_chains(data, q)
-    return g, (k, ct, chain_layout(data))
-
-
-@traced_once
-def _poses_and_chains(data: LinkageData, q):
-    """:func:`poses_with_records` without the layout (NumPy: not a traced output)."""
     lay = chain_layout(data)
     k = steps(data, q)
     ct = chain_terms(data, k, lay)
-    return point_poses(ct, lay, link_base_poses(data, ct, lay)), k, ct
+    g = point_poses(ct, lay, link_base_poses(data, ct, lay))
+    return g, (k, ct, lay)
 
 
 def force_from_wrenches(

@@ -36,7 +36,6 @@ import numpy as np
 from jax import lax
 from jaxtyping import Array, Float
 
-from .._jit import traced_once
 from ..lie import Ad, Ad_inv, ad
 from ..model._precompute import LinkageData
 from ._step import ad_apply as _ad_apply
@@ -79,7 +78,6 @@ class Steps(NamedTuple):
     xi: Array | None = None
 
 
-@traced_once
 def steps(data: LinkageData, q, qd=None) -> Steps:
     """Twists and exp/tangent kernels of every step of the linkage in one batch.
 
@@ -374,7 +372,6 @@ def link_base_poses(data: LinkageData, ct: ChainTerms, lay: ChainLayout) -> Arra
     return jnp.stack(bases)
 
 
-@traced_once
 def poses(data: LinkageData, q: Float[Array, " n_dof"]) -> Float[Array, "n_points 4 4"]:
     """World poses of all significant points (no Jacobians traced)."""
     lay = chain_layout(data)
@@ -426,7 +423,6 @@ def kinematics_and_rates(
     return g, J, eta, etadot
 
 
-@traced_once
 def _tree_pass(data: LinkageData, q, V, qd):
     """Poses, Jacobians (times ``V``) and, when ``qd`` is given, twists and rates.
 

@@ -341,10 +341,10 @@ def _precompute(linkage: Linkage) -> LinkageData:
 def precompute(linkage: Linkage) -> LinkageData:
     """Evaluate all derived arrays of ``linkage`` (see the module docstring).
 
-    An inlined jit: inside a trace, its equations go into the calling program as if
-    traced there (the same HLO), but JAX traces this Python once per linkage
-    structure and reuses that jaxpr in every later program (statics, dynamics,
-    kinematics queries of one model: ~80 ms of tracing each for the manual's
-    17-DoF hybrid, ~8 ms from the cache).
+    Traced once per linkage structure (:func:`sorojax._jit.traced_once`): inside a
+    trace its equations go into the calling program as if traced there, and every
+    later program of the same model (statics, dynamics, kinematics queries) reuses
+    that jaxpr: ~80 ms of tracing per program for the manual's 17-DoF hybrid, ~8 ms
+    from the cache. Called outside any trace it is one compiled program.
     """
     return _precompute(linkage)
