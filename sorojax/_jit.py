@@ -105,7 +105,7 @@ def traced_once(fun: Callable) -> Callable:
     ``jvp`` or ``vmap`` JAX transforms the cached jaxpr, which on a first call costs
     the primal trace on top: measured by traced Python calls, the kinematic passes
     wrapped this way traced the manual hybrid's programs 3 % faster but the
-    continuation's corrector (a forward-mode Jacobian of them) 12 % slower
+    continuation's corrector (a forward-mode Jacobian of them) 15 % slower
     (benchmarks/README.md, eleventh round), so they are not. For functions of arrays
     and hashable static values only (a NumPy array argument would become a traced
     input).

