@@ -84,8 +84,8 @@ def _child(scenario: str, uncached: bool) -> dict:
         pr.disable()
         cpu += time.process_time() - t
 
+    sys.path.insert(0, str(ROOT / "examples"))  # the examples' scenes and inputs
     if scenario in ("hybrid", "statics"):
-        sys.path.insert(0, str(ROOT / "examples"))
         from manual_hybrid import inputs
 
         lk = sj.scenes.manual_hybrid()
@@ -106,10 +106,9 @@ def _child(scenario: str, uncached: bool) -> dict:
         import matplotlib
 
         matplotlib.use("Agg")
-        import sorojax.statics._continuation as cont
-
-        sys.path.insert(0, str(ROOT / "examples"))
         import snap_through
+
+        import sorojax.statics._continuation as cont
 
         real, seen = cont._correct, set()
 
@@ -152,6 +151,7 @@ def main(argv=None):
                     f"{row['cpu_s']:6.2f} s CPU"
                 )
     path = ROOT / "benchmarks" / "results" / "trace_reuse.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps({"env": environment(), "rows": rows}, indent=1) + "\n")
     print(f"wrote {path}")
 
