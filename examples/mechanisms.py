@@ -90,23 +90,23 @@ def crank_angle(omega, t):
     return jnp.stack([omega * t])
 
 
-def driven(linkage, assemble, omega, t1, rtol, n_save):
-    """Simulate the crank driven at ``omega`` [rad/s] for ``t1`` s from theta = 0.
+def driven_arguments(linkage, assemble, omega, t1, rtol, n_save):
+    """``simulate``'s arguments: the crank driven at ``omega`` [rad/s] from theta = 0.
 
     The input is one ``equinox.Partial`` of a module-level function: equal for both
     mechanisms, so (with their joints' directions as arrays) the slider-crank
     reuses the four-bar's compiled integration (a new lambda per call would be a
     new program).
     """
-    traj = sj.simulate(
-        linkage,
-        t1,
-        assemble(0.0),
-        u=eqx.Partial(crank_angle, omega),
-        rtol=rtol,
-        atol=rtol * 1e-2,
-        n_save=n_save,
-    )
+    u = eqx.Partial(crank_angle, omega)
+    kwargs = dict(u=u, rtol=rtol, atol=rtol * 1e-2, n_save=n_save)
+    return (linkage, t1, assemble(0.0)), kwargs
+
+
+def driven(linkage, assemble, omega, t1, rtol, n_save):
+    """Simulate the crank driven at ``omega`` [rad/s] for ``t1`` s from theta = 0."""
+    call, kwargs = driven_arguments(linkage, assemble, omega, t1, rtol, n_save)
+    traj = sj.simulate(*call, **kwargs)
     e = traj.closure_errors(linkage)
     drift = np.abs(np.asarray(e)).max(axis=1)
     return traj, drift
@@ -154,9 +154,19 @@ def main(argv=None):
 
     angles = np.linspace(0.0, 2 * math.pi, args.n_angles, endpoint=False)
     results = {}
+    linkages = {name: MECHANISMS[name][0]() for name in names}
+    if not args.statics_only:
+        # The integration's programs (one for both mechanisms) compile in a worker
+        # thread while the statics run: the same arguments as the later call.
+        first = names[0]
+        call, kwargs = driven_arguments(
+            linkages[first], MECHANISMS[first][1], args.omega, args.t1, args.rtol,
+            args.n_save,
+        )  # fmt: skip
+        sj.prepare(sj.simulate, *call, **kwargs)
     for name in names:
-        build, assemble = MECHANISMS[name]
-        linkage = build()
+        _, assemble = MECHANISMS[name]
+        linkage = linkages[name]
         st = statics_sweep(linkage, assemble, angles)
         print(
             f"{name}: statics at {len(angles)} crank angles, max residual "

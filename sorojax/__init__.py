@@ -24,6 +24,7 @@ _LAZY = {
     "compiler_options": "._jit",
     "compile_mode": "._jit",
     "jit": "._jit",
+    "prepare": "._jit",
     "RESULTS": "._results",
     "StaticsSolution": "._results",
     "sweep": "._sweep",
@@ -139,6 +140,7 @@ if TYPE_CHECKING:  # static analysers see the names as plain imports
     from ._jit import compile_mode as compile_mode
     from ._jit import compiler_options as compiler_options
     from ._jit import jit as jit
+    from ._jit import prepare as prepare
     from ._recompile import RecompilationWarning as RecompilationWarning
     from ._results import RESULTS as RESULTS
     from ._results import StaticsSolution as StaticsSolution

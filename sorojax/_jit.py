@@ -238,10 +238,16 @@ def jit(fun: Callable, *, tiered: bool = True) -> Callable:
     call's shapes and dtypes do (their values are not used; other arguments as in
     the call): compile a program whose inputs are still being computed, e.g. by
     a long integration.
+
+    ``f.prepare(*args, **kwargs)`` (what :func:`sorojax.prepare` does) traces and
+    lowers that program here, in the calling thread, and compiles it in a worker
+    thread, in whichever tier the call would use (a program that starts at XLA's
+    default level, too); the call waits for the compile.
     """
     plain = eqx.filter_jit(fun)
     tuned: list = []
     programs: dict = {}
+    prepared: dict = {}
 
     def full():
         if not tuned:
@@ -264,6 +270,10 @@ def jit(fun: Callable, *, tiered: bool = True) -> Callable:
             return plain(*args, **kwargs)
         mode = compile_mode()
         if not tiers_for(mode):
+            if prepared:  # compiled ahead by prepare (else no signature is taken)
+                compiled = _prepared_program(prepared, _signature(args, kwargs))
+                if compiled is not None:
+                    return compiled(*args, **kwargs)
             return full()(*args, **kwargs)
         key = _signature(args, kwargs)
         program = programs.get(key)
@@ -295,11 +305,100 @@ def jit(fun: Callable, *, tiered: bool = True) -> Callable:
         future = programs[key] = _COMPILE_THREAD.submit(new_program, args, kwargs)
         return future
 
+    def prepare(*args, **kwargs) -> concurrent.futures.Future | None:
+        """Trace and lower ``call(*args, **kwargs)``'s program; compile it in a thread.
+
+        For a program needed later in a script (a simulation after the statics):
+        its XLA compile, which does not hold Python's lock, runs while the caller
+        goes on, and the call waits for it. The trace stays in the calling thread
+        (traces in two threads would only take turns). Only at top level; nothing
+        is done (None) for a program already compiled or prepared here.
+        """
+        if not _top_level():
+            return None
+        mode = compile_mode()
+        key = _signature(args, kwargs)
+        if tiers_for(mode):
+            if key in programs:
+                return None
+            lowered = plain.lower(*args, **kwargs)
+            future = programs[key] = _COMPILE_THREAD.submit(
+                _TieredProgram, lambda: lowered, _probed_options()
+            )
+            return future
+        if key in prepared:
+            return None
+        lowered = full().lower(*args, **kwargs)
+        future = prepared[key] = _COMPILE_THREAD.submit(
+            lowered.compile, _probed_options() or None
+        )
+        return future
+
     call.programs = programs  # the tiered programs, by signature (for inspection)
+    call.prepared = prepared  # programs at the default level compiled by prepare
     call.compile_ahead = compile_ahead
+    call.prepare = prepare
     # ahead-of-time compilation, as on a filter_jit: f.lower(*args).compile()
     call.lower = lambda *a, **kw: (full() if _top_level() else plain).lower(*a, **kw)
     return call
+
+
+def prepare(fn: Callable, /, *args, **kwargs) -> concurrent.futures.Future | None:
+    """Compile ``fn(*args, **kwargs)``'s programs in a worker thread, for a later call.
+
+    A script's first run waits for XLA to compile each program as it comes to it
+    (statics, then a simulation, ...). ``prepare`` traces and lowers the programs of
+    a later call now, in the calling thread, and compiles them in a worker thread
+    while the script goes on; XLA's compile does not hold Python's lock, so on a
+    machine with a core to spare it runs beside the script's other work. The later
+    call with arguments of the same shapes and the same settings waits for the
+    compile instead of compiling. Nothing is computed: array values do not matter,
+    except where ``fn`` decides on the host from them (``simulate``'s
+    ``solver="auto"`` picks the solver from ``q0``, ``t0`` and ``t1``: name it).
+
+    Args:
+        fn: :func:`sorojax.simulate`, :func:`sorojax.solve_statics`, or a
+            :func:`sorojax.jit` function.
+        *args: the later call's arguments (arrays of its shapes and dtypes).
+        **kwargs: its keyword arguments.
+
+    Returns:
+        The future of the (main) compile, or None where nothing is to be done: inside
+        a trace, or for a program already compiled or prepared.
+
+    Raises:
+        TypeError: ``fn`` is not one of these.
+
+    Example::
+
+        ahead = sj.prepare(sj.simulate, linkage, 2.0, q_ref, u=u_of_t, solver="tsit5")
+        sol = sj.solve_statics(linkage, q_ref, u=u0)  # compiles meanwhile
+        traj = sj.simulate(linkage, 2.0, sol.q, u=u_of_t, solver="tsit5")
+    """
+    hook = getattr(fn, "prepare", None)
+    if hook is None:
+        raise TypeError(
+            f"sorojax.prepare takes sorojax.simulate, sorojax.solve_statics or a "
+            f"function made by sorojax.jit; got {fn!r}. Wrap your own function "
+            "with sorojax.jit to prepare it."
+        )
+    return hook(*args, **kwargs)
+
+
+def _prepared_program(prepared: dict, key):
+    """The compiled program :func:`jit`'s ``prepare`` made for ``key``, or None.
+
+    Waits for its compile; a failed compile is dropped (the call then compiles as
+    usual and raises there).
+    """
+    program = prepared.get(key)
+    if isinstance(program, concurrent.futures.Future):
+        try:
+            program = prepared[key] = program.result()
+        except Exception:
+            prepared.pop(key, None)
+            return None
+    return program
 
 
 # One worker thread for programs compiled ahead (started on the first submit), and

@@ -7,6 +7,7 @@ fall back to XLA's defaults when turned off or unknown, and the dynamics' right-
 side must be traced once per program however often diffrax calls it.
 """
 
+import concurrent.futures
 import warnings
 
 import jax
@@ -332,6 +333,88 @@ def test_program_compiled_ahead_in_a_thread_serves_the_call(tiered):
     with pytest.raises(KeyError, match="traced in the thread"):
         g(x)
     assert not g.programs
+
+
+def test_prepare_compiles_the_later_calls_program_in_a_thread(tiered):
+    """``sorojax.prepare`` traces and lowers the program of a later call in the
+    calling thread and compiles it in a worker thread, in the tier the call would
+    use (-O0 for a tiered function, the default level for one that starts there,
+    as ``simulate``'s integration): the call then compiles nothing (one compile in
+    all per program) and gives the plain function's values. Preparing the same
+    signature again does nothing (None)."""
+    f = sjit.jit(lambda x, n: jnp.cumsum(jnp.tan(x) * n))
+    x = jnp.linspace(0.0, 1.0, 6)
+    future = sj.prepare(f, jnp.zeros(6), 4)  # values do not matter, shapes do
+    assert future is not None
+    assert sj.prepare(f, jnp.ones(6), 4) is None
+    future.result()
+    np.testing.assert_allclose(f(x, 4), np.cumsum(np.tan(np.asarray(x)) * 4), 1e-14)
+    assert tiered == [{**sj.compiler_options(), **sjit.FAST_OPTIONS}]
+    g = sjit.jit(lambda x: jnp.cumprod(x + 1.0), tiered=False)
+    future = sj.prepare(g, x)
+    assert future is not None and sj.prepare(g, x) is None
+    np.testing.assert_allclose(g(x), np.cumprod(np.asarray(x) + 1.0), rtol=1e-14)
+    g(x + 1.0)  # new values, same program
+    assert tiered[1:] == [sj.compiler_options()]  # at the default level, once
+    assert len(g.prepared) == 1
+
+
+def test_prepare_rejects_other_functions_and_does_nothing_in_a_trace(tiered):
+    """Only sorojax's entry points and ``sorojax.jit`` functions can be prepared (a
+    TypeError names the fix); inside a user's trace there is no program of its own
+    to compile (None, nothing compiled)."""
+    with pytest.raises(TypeError, match="sorojax.jit"):
+        sj.prepare(jnp.sin, jnp.ones(3))
+    f = sjit.jit(lambda x: 3.0 * x)
+    seen = []
+    jax.jit(lambda x: seen.append(sj.prepare(f, x)) or x)(jnp.ones(2))
+    assert seen == [None] and not f.programs and not f.prepared and not tiered
+
+
+def test_prepared_simulate_and_statics_compile_nothing_at_their_calls(tiered, arm):
+    """``prepare(simulate, ...)`` with the arguments of a later call (other values,
+    the same shapes and settings) compiles its integration and its efforts'
+    programs beforehand; ``prepare(solve_statics, ...)`` likewise. The calls then
+    compile nothing, and the trajectory equals the one from the program compiled
+    at a call (the same program: 1e-15)."""
+    from sorojax.statics._solve import _solve_statics
+
+    q = jnp.zeros(arm.n_dof)
+    settings = dict(u=_angle, n_save=4, solver="ros34pw2", rtol=2e-4)
+    ahead = sj.prepare(sj.simulate, arm, 0.05, q, **settings)
+    assert ahead is not None  # the integration's program (default level)
+    sj.prepare(sj.solve_statics, arm, q, u=jnp.array([0.3]))
+    ahead.result()
+    for fn in (simulate_module._saved_inputs, _solve_statics):  # compiles ahead
+        for program in list(fn.programs.values()):
+            if isinstance(program, concurrent.futures.Future):
+                program.result()
+    compiled = []  # the programs XLA compiles from here on (JAX's events)
+
+    def listen(event, seconds, **kwargs):
+        if event == "/jax/core/compile/backend_compile_duration":
+            compiled.append(kwargs.get("fun_name", "?"))
+
+    from jax._src import monitoring
+
+    monitoring.register_event_duration_secs_listener(listen)
+    try:
+        sol = sj.solve_statics(arm, q, u=jnp.array([0.5]))
+        traj = sj.simulate(arm, 0.3, sol.q, **settings)
+    finally:
+        monitoring.unregister_event_duration_listener(listen)
+    # (single operations outside the programs may compile on first use)
+    programs = [name for name in compiled if "_simulate" in name or "_solve" in name]
+    assert not programs, f"compiled again at the prepared calls: {programs}"
+    assert traj.efforts.shape == (4, 1)
+    simulate_module._simulate.prepared.clear()  # now compiled at the call
+    again = sj.simulate(arm, 0.3, sol.q, **settings)
+    for a, b in zip(
+        (traj.q, traj.qd, traj.efforts),
+        (again.q, again.qd, again.efforts),
+        strict=True,
+    ):
+        np.testing.assert_allclose(a, b, rtol=1e-15, atol=1e-15)
 
 
 def test_tiered_mode_respects_disable_jit(tiered):

@@ -19,6 +19,7 @@ import concurrent.futures
 import contextlib
 import functools
 from collections.abc import Callable
+from typing import NamedTuple
 
 import diffrax
 import equinox as eqx
@@ -510,6 +511,63 @@ def simulate(
         ValueError: bad shapes, unknown solver, ``ts`` outside ``[t0, t1]``.
         RuntimeError: the integration failed and ``throw`` is True.
     """
+    plan = _plan(
+        linkage, t1, q0, qd0, t0, ts, n_save, solver, rtol, atol, dt0, adaptive,
+        max_steps, generalized_force, u, progress, adjoint,
+    )  # fmt: skip
+    with _errors_as_nans():
+        # The efforts' program depends on the trajectory's shapes only: it is traced
+        # and compiled in a thread while the integration compiles and runs (their
+        # first call waits for it; manual hybrid example 1.7 s of trace, lowering
+        # and -O0 compile taken off its path).
+        ahead = (
+            _saved_inputs.compile_ahead(*plan.inputs_args) if plan.separate else None
+        )
+        try:
+            traj = _simulate(*plan.args)
+        finally:  # the thread traces under _errors_as_nans too
+            if ahead is not None:
+                concurrent.futures.wait([ahead])
+        if plan.separate:
+            ys = jnp.concatenate([traj.q, traj.qd], axis=1)
+            _, _, _, u_fn, u_const, gf = plan.inputs_args
+            inputs = _saved_inputs(linkage, traj.t, ys, u_fn, u_const, gf)
+            traj = eqx.tree_at(
+                lambda tr: (tr.u, tr.efforts, tr.lam),
+                traj,
+                inputs,
+                is_leaf=lambda x: x is None,
+            )
+    if not throw:
+        return traj
+    failed = traj.result != RESULTS.successful
+    if isinstance(failed, jax.core.Tracer):
+        return eqx.tree_at(lambda s: s.q, traj, traj.result.error_if(traj.q, failed))
+    if bool(failed):
+        message = RESULTS._index_to_message[int(traj.result._value)]
+        raise RuntimeError(
+            f"simulate failed: {message} After {int(traj.num_steps)} steps "
+            f"({int(traj.num_rejected_steps)} rejected). For a stiff model use an "
+            "implicit solver ('kvaerno5', 'kvaerno3', 'implicit_euler'); otherwise "
+            "raise max_steps, loosen rtol/atol, or pass throw=False to inspect the "
+            "trajectory up to the failure."
+        )
+    return traj
+
+
+class _Plan(NamedTuple):
+    """What :func:`simulate` decided on the host: the compiled core's arguments."""
+
+    args: tuple  # of _simulate
+    separate: bool  # the efforts at the save points are a program of their own
+    inputs_args: tuple  # of _saved_inputs, with the save points' shapes
+
+
+def _plan(
+    linkage, t1, q0, qd0, t0, ts, n_save, solver, rtol, atol, dt0, adaptive,
+    max_steps, generalized_force, u, progress, adjoint,
+) -> _Plan:  # fmt: skip
+    """:func:`simulate`'s checks and host-side choices, up to its compiled core."""
     # default zeros made on the host (jnp.zeros compiles a program per size)
     zeros = np.zeros(linkage.n_dof)
     q0 = _as_q(linkage, zeros if q0 is None else q0, "q0")
@@ -565,71 +623,64 @@ def simulate(
     # cost about as much inside the integration's program as apart, and inside a
     # trace they are part of the caller's program.
     inline = not in_tiers()
-    separate = not inline and _needs_inputs(linkage)
+    args = (
+        linkage, y0, t0_, t1_, ts_, solver_, controller, dt0_, max_steps,
+        generalized_force, meter, adjoint, u_fn, u_const, inline,
+    )  # fmt: skip
+    shapes = np.zeros((ts_.shape[0], y0.shape[0]), y0.dtype)  # shapes only
+    return _Plan(
+        args,
+        not inline and _needs_inputs(linkage),
+        (linkage, ts_, shapes, u_fn, u_const, generalized_force),
+    )
+
+
+def prepare_simulate(
+    linkage: Linkage,
+    t1: ArrayLike,
+    q0: ArrayLike | None = None,
+    qd0: ArrayLike | None = None,
+    *,
+    t0: ArrayLike = 0.0,
+    ts: ArrayLike | None = None,
+    n_save: int = 101,
+    solver: str | diffrax.AbstractSolver = DEFAULT_SOLVER,
+    rtol: float = 1e-3,
+    atol: float = 1e-5,
+    dt0: float | None = None,
+    adaptive: bool = True,
+    max_steps: int = 16384,
+    generalized_force: GeneralizedForce | None = None,
+    u: ArrayLike | InputFunction | None = None,
+    progress: bool = False,
+    adjoint: diffrax.AbstractAdjoint | None = None,
+    throw: bool = True,
+) -> concurrent.futures.Future | None:
+    """Compile the programs of ``simulate(...)`` (same arguments) in a worker thread.
+
+    :func:`sorojax.prepare` with :func:`simulate`. Traces and lowers the
+    integration's program (and, in the compile tiers, the efforts' program) here;
+    their XLA compiles run in a worker thread while the caller goes on, and the
+    later ``simulate`` call with arguments of the same shapes and the same settings
+    waits for them instead of compiling. Nothing is integrated. Array values do not
+    matter, except where ``simulate`` decides on the host from them: ``solver="auto"``
+    picks the solver from ``q0``, ``t0`` and ``t1`` (name the solver, or give the
+    values of the later call). Returns the future of the integration's compile
+    (None inside a trace, or when that program is compiled or prepared already).
+    """
+    del throw  # the same program either way
+    plan = _plan(
+        linkage, t1, q0, qd0, t0, ts, n_save, solver, rtol, atol, dt0, adaptive,
+        max_steps, generalized_force, u, progress, adjoint,
+    )  # fmt: skip
     with _errors_as_nans():
-        # The efforts' program depends on the trajectory's shapes only: it is traced
-        # and compiled in a thread while the integration compiles and runs (their
-        # first call waits for it; manual hybrid example 1.7 s of trace, lowering
-        # and -O0 compile taken off its path).
-        ahead = (
-            _saved_inputs.compile_ahead(
-                linkage,
-                ts_,
-                np.zeros((ts_.shape[0], y0.shape[0]), y0.dtype),  # shapes only
-                u_fn,
-                u_const,
-                generalized_force,
-            )
-            if separate
-            else None
-        )
-        try:
-            traj = _simulate(
-                linkage,
-                y0,
-                t0_,
-                t1_,
-                ts_,
-                solver_,
-                controller,
-                dt0_,
-                max_steps,
-                generalized_force,
-                meter,
-                adjoint,
-                u_fn,
-                u_const,
-                inline,
-            )
-        finally:  # the thread traces under _errors_as_nans too
-            if ahead is not None:
-                concurrent.futures.wait([ahead])
-        if separate:
-            ys = jnp.concatenate([traj.q, traj.qd], axis=1)
-            inputs = _saved_inputs(
-                linkage, traj.t, ys, u_fn, u_const, generalized_force
-            )
-            traj = eqx.tree_at(
-                lambda tr: (tr.u, tr.efforts, tr.lam),
-                traj,
-                inputs,
-                is_leaf=lambda x: x is None,
-            )
-    if not throw:
-        return traj
-    failed = traj.result != RESULTS.successful
-    if isinstance(failed, jax.core.Tracer):
-        return eqx.tree_at(lambda s: s.q, traj, traj.result.error_if(traj.q, failed))
-    if bool(failed):
-        message = RESULTS._index_to_message[int(traj.result._value)]
-        raise RuntimeError(
-            f"simulate failed: {message} After {int(traj.num_steps)} steps "
-            f"({int(traj.num_rejected_steps)} rejected). For a stiff model use an "
-            "implicit solver ('kvaerno5', 'kvaerno3', 'implicit_euler'); otherwise "
-            "raise max_steps, loosen rtol/atol, or pass throw=False to inspect the "
-            "trajectory up to the failure."
-        )
-    return traj
+        future = _simulate.prepare(*plan.args)
+    if plan.separate:
+        _saved_inputs.prepare(*plan.inputs_args)
+    return future
+
+
+simulate.prepare = prepare_simulate
 
 
 @jit

@@ -641,28 +641,11 @@ def solve_statics(
         ValueError: bad ``q0`` shape or ``load_steps`` < 1.
         RuntimeError: the solve failed and ``throw`` is True.
     """
-    top = _top_level()  # a call of its own, not inside a user's trace
-    if top:  # a new hook object means a new program
-        note_hooks(linkage, "solve_statics")
-    # Defaults as arrays here, so that a call with and one without q0 or u share
-    # one compiled program (and bad shapes fail before anything compiles).
-    # (zeros made on the host: jnp.zeros would compile a program per size)
-    q0 = _as_q(linkage, np.zeros(linkage.n_dof) if q0 is None else q0, "q0")
-    u = as_inputs(linkage, None if u is None else jnp.asarray(u, float), q0.dtype)
-    sol = _solve_statics(
-        linkage,
-        q0,
-        u,
-        t=jnp.asarray(t, dtype=float),
-        solver=solver,
-        load_steps=load_steps,
-        max_load_steps=max_load_steps,
-        load_increment=load_increment,
-        max_steps=max_steps,
-        rtol=rtol,
-        atol=atol,
-        differentiable=not top,
-    )
+    args, kwargs = _core_arguments(
+        linkage, q0, u, t, solver, load_steps, max_load_steps, load_increment,
+        max_steps, rtol, atol,
+    )  # fmt: skip
+    sol = _solve_statics(*args, **kwargs)
     code = sol.result._value
     traced = isinstance(code, jax.core.Tracer)
     # (concrete: compared on the host; != on the arrays compiles a program)
@@ -695,3 +678,65 @@ def solve_statics(
             "better q0, or throw=False to inspect the returned solution."
         )
     return sol
+
+
+def _core_arguments(
+    linkage, q0, u, t, solver, load_steps, max_load_steps, load_increment,
+    max_steps, rtol, atol,
+) -> tuple[tuple, dict]:  # fmt: skip
+    """:func:`solve_statics`' checks and the arguments of its compiled core."""
+    top = _top_level()  # a call of its own, not inside a user's trace
+    if top:  # a new hook object means a new program
+        note_hooks(linkage, "solve_statics")
+    # Defaults as arrays here, so that a call with and one without q0 or u share
+    # one compiled program (and bad shapes fail before anything compiles).
+    # (zeros made on the host: jnp.zeros would compile a program per size)
+    q0 = _as_q(linkage, np.zeros(linkage.n_dof) if q0 is None else q0, "q0")
+    u = as_inputs(linkage, None if u is None else jnp.asarray(u, float), q0.dtype)
+    kwargs = dict(
+        t=jnp.asarray(t, dtype=float),
+        solver=solver,
+        load_steps=load_steps,
+        max_load_steps=max_load_steps,
+        load_increment=load_increment,
+        max_steps=max_steps,
+        rtol=rtol,
+        atol=atol,
+        differentiable=not top,
+    )
+    return (linkage, q0, u), kwargs
+
+
+def prepare_statics(
+    linkage: Linkage,
+    q0: ArrayLike | None = None,
+    u: ArrayLike | None = None,
+    *,
+    t: ArrayLike = 0.0,
+    solver: optx.AbstractRootFinder | optx.AbstractLeastSquaresSolver | None = None,
+    load_steps: int | None = None,
+    max_load_steps: int = 16,
+    load_increment: float = 2.0,
+    max_steps: int = 64,
+    rtol: float = 1e-10,
+    atol: float = 1e-10,
+    throw: bool = True,
+    warn_unstable: bool = True,
+):
+    """Compile the program of ``solve_statics(...)`` (same arguments) in a thread.
+
+    :func:`sorojax.prepare` with :func:`solve_statics`: traced and lowered here,
+    compiled in a worker thread; the later call with arguments of the same shapes
+    and settings waits for it instead of compiling. Nothing is solved. Returns the
+    compile's future (None inside a trace, or when the program is compiled or
+    prepared already).
+    """
+    del throw, warn_unstable  # host-side only: the same program
+    args, kwargs = _core_arguments(
+        linkage, q0, u, t, solver, load_steps, max_load_steps, load_increment,
+        max_steps, rtol, atol,
+    )  # fmt: skip
+    return _solve_statics.prepare(*args, **kwargs)
+
+
+solve_statics.prepare = prepare_statics
