@@ -179,11 +179,15 @@ class _TieredProgram:
         "promote_s",
     )
 
-    def __init__(self, lower: Callable, options: dict[str, Any]):
+    def __init__(
+        self, lower: Callable, options: dict[str, Any], lower_s: float | None = None
+    ):
         self.options = options  # of the second compile
         start = time.perf_counter()
         self.lowered = lower()  # traced and lowered once for both tiers
         middle = time.perf_counter()
+        if lower_s is not None:  # traced and lowered before (prepare)
+            start = middle - lower_s
         self.fast = self.lowered.compile({**options, **FAST_OPTIONS})
         # The budget is the -O0 compile's time, or the trace's and lowering's when
         # longer: a compile loaded from JAX's persistent cache takes milliseconds,
@@ -321,9 +325,13 @@ def jit(fun: Callable, *, tiered: bool = True) -> Callable:
         if tiers_for(mode):
             if key in programs:
                 return None
+            start = time.perf_counter()
             lowered = plain.lower(*args, **kwargs)
             future = programs[key] = _COMPILE_THREAD.submit(
-                _TieredProgram, lambda: lowered, _probed_options()
+                _TieredProgram,
+                lambda: lowered,
+                _probed_options(),
+                time.perf_counter() - start,
             )
             return future
         if key in prepared:

@@ -350,6 +350,8 @@ def test_prepare_compiles_the_later_calls_program_in_a_thread(tiered):
     future.result()
     np.testing.assert_allclose(f(x, 4), np.cumsum(np.tan(np.asarray(x)) * 4), 1e-14)
     assert tiered == [{**sj.compiler_options(), **sjit.FAST_OPTIONS}]
+    (program,) = f.programs.values()  # the -O0 tier, its budget counted as usual
+    assert isinstance(program, sjit._TieredProgram) and program.budget > 0.0
     g = sjit.jit(lambda x: jnp.cumprod(x + 1.0), tiered=False)
     future = sj.prepare(g, x)
     assert future is not None and sj.prepare(g, x) is None
