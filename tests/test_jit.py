@@ -361,12 +361,16 @@ def test_prepare_compiles_the_later_calls_program_in_a_thread(tiered):
     assert len(g.prepared) == 1
 
 
-def test_prepare_rejects_other_functions_and_does_nothing_in_a_trace(tiered):
+def test_prepare_rejects_other_functions_and_does_nothing_in_a_trace(tiered, arm):
     """Only sorojax's entry points and ``sorojax.jit`` functions can be prepared (a
-    TypeError names the fix); inside a user's trace there is no program of its own
-    to compile (None, nothing compiled)."""
+    TypeError names the fix), with the arguments their call takes; inside a user's
+    trace there is no program of its own to compile (None, nothing compiled)."""
     with pytest.raises(TypeError, match="sorojax.jit"):
         sj.prepare(jnp.sin, jnp.ones(3))
+    with pytest.raises(TypeError, match="n_saves"):
+        sj.prepare(sj.simulate, arm, 1.0, n_saves=3)
+    with pytest.raises(TypeError, match="tol"):
+        sj.prepare(sj.solve_statics, arm, tol=1e-6)
     f = sjit.jit(lambda x: 3.0 * x)
     seen = []
     jax.jit(lambda x: seen.append(sj.prepare(f, x)) or x)(jnp.ones(2))

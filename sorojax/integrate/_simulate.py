@@ -18,6 +18,7 @@ failed result code rather than an error naming them.
 import concurrent.futures
 import contextlib
 import functools
+import inspect
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -635,27 +636,7 @@ def _plan(
     )
 
 
-def prepare_simulate(
-    linkage: Linkage,
-    t1: ArrayLike,
-    q0: ArrayLike | None = None,
-    qd0: ArrayLike | None = None,
-    *,
-    t0: ArrayLike = 0.0,
-    ts: ArrayLike | None = None,
-    n_save: int = 101,
-    solver: str | diffrax.AbstractSolver = DEFAULT_SOLVER,
-    rtol: float = 1e-3,
-    atol: float = 1e-5,
-    dt0: float | None = None,
-    adaptive: bool = True,
-    max_steps: int = 16384,
-    generalized_force: GeneralizedForce | None = None,
-    u: ArrayLike | InputFunction | None = None,
-    progress: bool = False,
-    adjoint: diffrax.AbstractAdjoint | None = None,
-    throw: bool = True,
-) -> concurrent.futures.Future | None:
+def prepare_simulate(*args, **kwargs) -> concurrent.futures.Future | None:
     """Compile the programs of ``simulate(...)`` (same arguments) in a worker thread.
 
     :func:`sorojax.prepare` with :func:`simulate`. Traces and lowers the
@@ -668,11 +649,10 @@ def prepare_simulate(
     values of the later call). Returns the future of the integration's compile
     (None inside a trace, or when that program is compiled or prepared already).
     """
-    del throw  # the same program either way
-    plan = _plan(
-        linkage, t1, q0, qd0, t0, ts, n_save, solver, rtol, atol, dt0, adaptive,
-        max_steps, generalized_force, u, progress, adjoint,
-    )  # fmt: skip
+    call = inspect.signature(simulate).bind(*args, **kwargs)
+    call.apply_defaults()
+    call.arguments.pop("throw")  # the same program either way
+    plan = _plan(**call.arguments)
     with _errors_as_nans():
         future = _simulate.prepare(*plan.args)
     if plan.separate:

@@ -22,6 +22,7 @@ forward-mode pass of the residual. A user's optimistix solver (``solver=``) runs
 increment with optimistix's own loop.
 """
 
+import inspect
 import warnings
 
 import equinox as eqx
@@ -707,22 +708,7 @@ def _core_arguments(
     return (linkage, q0, u), kwargs
 
 
-def prepare_statics(
-    linkage: Linkage,
-    q0: ArrayLike | None = None,
-    u: ArrayLike | None = None,
-    *,
-    t: ArrayLike = 0.0,
-    solver: optx.AbstractRootFinder | optx.AbstractLeastSquaresSolver | None = None,
-    load_steps: int | None = None,
-    max_load_steps: int = 16,
-    load_increment: float = 2.0,
-    max_steps: int = 64,
-    rtol: float = 1e-10,
-    atol: float = 1e-10,
-    throw: bool = True,
-    warn_unstable: bool = True,
-):
+def prepare_statics(*args, **kwargs):
     """Compile the program of ``solve_statics(...)`` (same arguments) in a thread.
 
     :func:`sorojax.prepare` with :func:`solve_statics`: traced and lowered here,
@@ -731,11 +717,11 @@ def prepare_statics(
     compile's future (None inside a trace, or when the program is compiled or
     prepared already).
     """
-    del throw, warn_unstable  # host-side only: the same program
-    args, kwargs = _core_arguments(
-        linkage, q0, u, t, solver, load_steps, max_load_steps, load_increment,
-        max_steps, rtol, atol,
-    )  # fmt: skip
+    call = inspect.signature(solve_statics).bind(*args, **kwargs)
+    call.apply_defaults()
+    for host_only in ("throw", "warn_unstable"):  # the same program either way
+        call.arguments.pop(host_only)
+    args, kwargs = _core_arguments(**call.arguments)
     return _solve_statics.prepare(*args, **kwargs)
 
 
