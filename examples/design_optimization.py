@@ -45,8 +45,11 @@ solves, 4.6 s, to 1e-2, and 6.6e-5 mm^2 after its 2000 evaluations (16000 solves
 reference's every value: E and the radii trade off (the problem is sloppy).
 The first calls of the two programs (trace, compile, run) take ~5-6 s and ~9 s on a
 2-core CPU (2026-11-25, stop 31; the second took ~14-16 s before the statics'
-implicit derivative reused Newton's Jacobian): the example's first run (31-34 s) is
-these and the optimisers' own 12-13 s, Nelder-Mead's 16000 solves most of it.
+implicit derivative reused Newton's Jacobian): the example's first run (28-43 s) is
+these and the optimisers' own 12-16 s, Nelder-Mead's 16000 solves most of it. Since
+stop 35 the Jacobian's program is traced first and compiled in a worker thread
+(``sorojax.prepare``) while the value program compiles and runs: 20.2 -> 17.3 s for
+the two first calls back to back on a slow hour (2026-11-26).
 
 Run::
 

@@ -16,10 +16,12 @@ to 50 N over the first second; prints the step counts, the largest closure error
 along the motion and the torque. Writes a PNG (equilibrium, snapshots, torque);
 ``--video`` also writes an animation (mp4, or GIF without ffmpeg).
 
-The first run compiles the statics and the dynamics of this closed-loop model (14-17 s
-in all on a 2-core CPU, 2026-11-25); the compiled programs are kept in JAX's
-persistent cache (``sorojax.enable_compilation_cache``), so a second run takes about
-10 s (the traces are not cached).
+The first run compiles the statics and the dynamics of this closed-loop model; the
+dynamics' programs are traced first and compiled in a worker thread while the
+statics compile and run (``sorojax.prepare``): 12.5-14.1 s in all on a 2-core CPU
+against 14.8-16.9 s without (2026-11-26, interleaved pairs). The compiled programs
+are kept in JAX's persistent cache (``sorojax.enable_compilation_cache``), so a
+second run takes about 10 s (the traces are not cached).
 
 Run::
 
