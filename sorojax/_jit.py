@@ -386,7 +386,7 @@ def prepare(fn: Callable, /, *args, **kwargs) -> concurrent.futures.Future | Non
     hook = getattr(fn, "prepare", None)
     if hook is None:
         raise TypeError(
-            f"sorojax.prepare takes sorojax.simulate, sorojax.solve_statics or a "
+            "sorojax.prepare takes sorojax.simulate, sorojax.solve_statics or a "
             f"function made by sorojax.jit; got {fn!r}. Wrap your own function "
             "with sorojax.jit to prepare it."
         )
