@@ -93,8 +93,15 @@ def main(argv=None):
     if png.exists() and not args.overwrite:
         raise SystemExit(f"{png} exists; pass --overwrite to replace it")
 
-    # ------------------------------------------------------------ von Mises truss
+    # The later programs (the plain sweep's solve and the elastica's corrector)
+    # compile in a worker thread while the truss's path is traced (sorojax.prepare:
+    # the calls' arguments, values aside).
     truss, F_max = von_mises_truss()
+    column = pinned_elastica(args.order)
+    sj.prepare(sj.solve_statics, truss, np.zeros(truss.n_dof), warn_unstable=False)
+    sj.prepare(sj.continuation, column, 0.0, P_END_ELASTICA, switch_branch=True)
+
+    # ------------------------------------------------------------ von Mises truss
     t0 = time.perf_counter()
     path = sj.continuation(truss, 0.0, P_END)
     t_path = time.perf_counter() - t0
@@ -135,7 +142,6 @@ def main(argv=None):
             )
 
     # ------------------------------------------------------------------ elastica
-    column = pinned_elastica(args.order)
     t0 = time.perf_counter()
     buckled = sj.continuation(column, 0.0, P_END_ELASTICA, switch_branch=True)
     t_buckled = time.perf_counter() - t0

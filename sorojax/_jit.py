@@ -365,8 +365,8 @@ def prepare(fn: Callable, /, *args, **kwargs) -> concurrent.futures.Future | Non
     ``solver="auto"`` picks the solver from ``q0``, ``t0`` and ``t1``: name it).
 
     Args:
-        fn: :func:`sorojax.simulate`, :func:`sorojax.solve_statics`, or a
-            :func:`sorojax.jit` function.
+        fn: :func:`sorojax.simulate`, :func:`sorojax.solve_statics`,
+            :func:`sorojax.continuation`, or a :func:`sorojax.jit` function.
         *args: the later call's arguments (arrays of its shapes and dtypes).
         **kwargs: its keyword arguments.
 
@@ -386,9 +386,9 @@ def prepare(fn: Callable, /, *args, **kwargs) -> concurrent.futures.Future | Non
     hook = getattr(fn, "prepare", None)
     if hook is None:
         raise TypeError(
-            "sorojax.prepare takes sorojax.simulate, sorojax.solve_statics or a "
-            f"function made by sorojax.jit; got {fn!r}. Wrap your own function "
-            "with sorojax.jit to prepare it."
+            "sorojax.prepare takes sorojax.simulate, sorojax.solve_statics, "
+            "sorojax.continuation or a function made by sorojax.jit; got "
+            f"{fn!r}. Wrap your own function with sorojax.jit to prepare it."
         )
     return hook(*args, **kwargs)
 

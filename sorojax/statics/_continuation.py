@@ -27,7 +27,9 @@ Each corrector (and its spectrum and next tangent) is one compiled program per
 family and linkage structure; the loop over points runs in Python.
 """
 
+import concurrent.futures
 import dataclasses
+import inspect
 from collections.abc import Callable
 
 import jax
@@ -227,6 +229,18 @@ def _correct(family, u, q_p0, t, z_pred, t_w, *, max_iter: int, tol: float):
     return z, conv, it, lam, vecs, summary, tangent, J
 
 
+def _start(family, p0, p1, q0, u):
+    """``(linkage at p0, its inputs, q0, prescribed q0)`` after the checks."""
+    if p0 == p1:
+        raise ValueError(f"p0 = p1 = {p0!r}: give two different parameter values.")
+    lk0, u0 = _member(family, jnp.asarray(p0, dtype=float), u)
+    n = lk0.n_dof
+    q0 = jnp.zeros(n) if q0 is None else jnp.asarray(q0, dtype=float)
+    if q0.shape != (n,):
+        raise ValueError(f"q0 has shape {q0.shape}; this linkage needs ({n},).")
+    return lk0, u0, q0, q0[lk0.prescribed[0]]
+
+
 def continuation(
     family: Linkage | Callable[[ArrayLike], Linkage | tuple[Linkage, ArrayLike]],
     p0: float,
@@ -306,18 +320,12 @@ def continuation(
         ValueError: ``p0 == p1``, ``branch_direction`` not +-1, a bad ``q0``.
         RuntimeError: the start point does not converge.
     """
-    if p0 == p1:
-        raise ValueError(f"p0 = p1 = {p0!r}: give two different parameter values.")
     if branch_direction not in (1, -1):
         raise ValueError(f"branch_direction = {branch_direction!r}: give +1 or -1.")
+    lk0, u0, q0, q_p0 = _start(family, p0, p1, q0, u)
     load_factor = isinstance(family, Linkage)
-    lk0, u0 = _member(family, jnp.asarray(p0, dtype=float), u)
     n = lk0.n_dof
-    q0 = jnp.zeros(n) if q0 is None else jnp.asarray(q0, dtype=float)
-    if q0.shape != (n,):
-        raise ValueError(f"q0 has shape {q0.shape}; this linkage needs ({n},).")
     qi, ui = lk0.prescribed
-    q_p0 = q0[qi]
     u_full = np.asarray(as_inputs(lk0, u0, q0.dtype))
     free = free_coordinates(lk0)
     nf, n_c = len(free), lk0.n_constraints
@@ -515,3 +523,37 @@ def continuation(
         status=status,
         num_corrections=counter[0],
     )
+
+
+def prepare_continuation(*args, **kwargs) -> concurrent.futures.Future | None:
+    """Compile the corrector of ``continuation(...)`` (same arguments) in a thread.
+
+    :func:`sorojax.prepare` with :func:`continuation`: the corrector's program (one
+    per structure and family function) is traced and lowered here and compiled in a
+    worker thread, and for a family function the start's ``solve_statics`` too;
+    the later call waits for them instead of compiling. Nothing is traced along
+    the path. Returns the corrector compile's future (None inside a trace, or when
+    it is compiled or prepared already).
+    """
+    call = inspect.signature(continuation).bind(*args, **kwargs)
+    call.apply_defaults()
+    a = call.arguments
+    family, u, t = a["family"], a["u"], jnp.asarray(a["t"], dtype=float)
+    lk0, u0, q0, q_p0 = _start(family, a["p0"], a["p1"], a["q0"], u)
+    if not isinstance(family, Linkage):  # its start solves the statics at p0
+        solve_statics.prepare(lk0, q0, u0, t=a["t"], warn_unstable=False)
+    nz = len(free_coordinates(lk0)) + lk0.n_constraints + 1
+    z = np.zeros(nz)
+    return _correct.prepare(
+        family,
+        None if u is None else jnp.asarray(u, dtype=float),
+        q_p0,
+        t,
+        jnp.asarray(z),
+        jnp.asarray(z),
+        max_iter=a["max_iter"],
+        tol=a["tol"],
+    )
+
+
+continuation.prepare = prepare_continuation
