@@ -531,8 +531,8 @@ def prepare_continuation(*args, **kwargs) -> concurrent.futures.Future | None:
     :func:`sorojax.prepare` with :func:`continuation`: the corrector's program (one
     per structure and family function) is traced and lowered here and compiled in a
     worker thread, and for a family function the start's ``solve_statics`` too;
-    the later call waits for them instead of compiling. Nothing is traced along
-    the path. Returns the corrector compile's future (None inside a trace, or when
+    the later call waits for them instead of compiling. No point of the path is
+    computed. Returns the corrector compile's future (None inside a trace, or when
     it is compiled or prepared already).
     """
     call = inspect.signature(continuation).bind(*args, **kwargs)
