@@ -28,6 +28,7 @@ program; results agree to rounding (~1e-15 relative), not bit for bit: set
 
 import concurrent.futures
 import functools
+import inspect
 import os
 import time
 from collections.abc import Callable
@@ -391,6 +392,18 @@ def prepare(fn: Callable, /, *args, **kwargs) -> concurrent.futures.Future | Non
             f"{fn!r}. Wrap your own function with sorojax.jit to prepare it."
         )
     return hook(*args, **kwargs)
+
+
+def _bound_arguments(fn: Callable, args, kwargs, host_only=()) -> dict:
+    """``fn``'s parameters bound to a call's ``args`` and ``kwargs``, by name.
+
+    Defaults filled in, ``host_only`` parameters (those that do not change the
+    compiled program) left out. For the ``prepare`` of sorojax's entry points: a
+    wrong argument raises ``TypeError`` as the call itself would.
+    """
+    call = inspect.signature(fn).bind(*args, **kwargs)
+    call.apply_defaults()
+    return {k: v for k, v in call.arguments.items() if k not in host_only}
 
 
 def _prepared_program(prepared: dict, key):

@@ -18,7 +18,6 @@ failed result code rather than an error naming them.
 import concurrent.futures
 import contextlib
 import functools
-import inspect
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -30,7 +29,7 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, ArrayLike
 
-from .._jit import _top_level, in_tiers, jit
+from .._jit import _bound_arguments, _top_level, in_tiers, jit
 from .._recompile import note_function, note_hooks
 from .._results import RESULTS
 from ..dynamics._eom import (
@@ -649,10 +648,8 @@ def prepare_simulate(*args, **kwargs) -> concurrent.futures.Future | None:
     values of the later call). Returns the future of the integration's compile
     (None inside a trace, or when that program is compiled or prepared already).
     """
-    call = inspect.signature(simulate).bind(*args, **kwargs)
-    call.apply_defaults()
-    call.arguments.pop("throw")  # the same program either way
-    plan = _plan(**call.arguments)
+    # throw: the same program either way
+    plan = _plan(**_bound_arguments(simulate, args, kwargs, ("throw",)))
     with _errors_as_nans():
         future = _simulate.prepare(*plan.args)
     if plan.separate:

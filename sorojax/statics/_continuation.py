@@ -29,7 +29,6 @@ family and linkage structure; the loop over points runs in Python.
 
 import concurrent.futures
 import dataclasses
-import inspect
 from collections.abc import Callable
 
 import jax
@@ -37,7 +36,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import ArrayLike
 
-from .._jit import jit
+from .._jit import _bound_arguments, jit
 from ..dynamics._eom import as_inputs
 from ..model._linkage import Linkage
 from ..model._precompute import precompute
@@ -535,9 +534,7 @@ def prepare_continuation(*args, **kwargs) -> concurrent.futures.Future | None:
     computed. Returns the corrector compile's future (None inside a trace, or when
     it is compiled or prepared already).
     """
-    call = inspect.signature(continuation).bind(*args, **kwargs)
-    call.apply_defaults()
-    a = call.arguments
+    a = _bound_arguments(continuation, args, kwargs)
     family, u, t = a["family"], a["u"], jnp.asarray(a["t"], dtype=float)
     lk0, u0, q0, q_p0 = _start(family, a["p0"], a["p1"], a["q0"], u)
     if not isinstance(family, Linkage):  # its start solves the statics at p0

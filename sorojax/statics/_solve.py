@@ -22,7 +22,6 @@ forward-mode pass of the residual. A user's optimistix solver (``solver=``) runs
 increment with optimistix's own loop.
 """
 
-import inspect
 import warnings
 
 import equinox as eqx
@@ -34,7 +33,7 @@ import optimistix as optx
 from jax import lax
 from jaxtyping import Array, ArrayLike
 
-from .._jit import _top_level, jit
+from .._jit import _bound_arguments, _top_level, jit
 from .._recompile import note_hooks
 from .._results import RESULTS, StaticsSolution
 from ..dynamics._actuation import actuation_loads
@@ -717,11 +716,10 @@ def prepare_statics(*args, **kwargs):
     compile's future (None inside a trace, or when the program is compiled or
     prepared already).
     """
-    call = inspect.signature(solve_statics).bind(*args, **kwargs)
-    call.apply_defaults()
-    for host_only in ("throw", "warn_unstable"):  # the same program either way
-        call.arguments.pop(host_only)
-    args, kwargs = _core_arguments(**call.arguments)
+    host_only = ("throw", "warn_unstable")  # the same program either way
+    args, kwargs = _core_arguments(
+        **_bound_arguments(solve_statics, args, kwargs, host_only)
+    )
     return _solve_statics.prepare(*args, **kwargs)
 
 
