@@ -56,6 +56,8 @@ def note_function(fn, what: str, caller: str) -> None:
 
 
 def note_hooks(linkage, caller: str) -> None:
-    """:func:`note_function` for a linkage's hooks (static fields of the model)."""
+    """:func:`note_function` for a linkage's hooks (their static functions)."""
     for name in ("custom_wrench", "custom_actuation", "actuator_strength"):
-        note_function(getattr(linkage, name, None), f"Linkage.{name}", caller)
+        hook = getattr(linkage, name, None)
+        fn = getattr(hook, "function", hook)  # a model.Hook: the user's function
+        note_function(fn, f"Linkage.{name}", caller)

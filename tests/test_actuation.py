@@ -321,6 +321,56 @@ def test_actuator_strength_hook_replaces_inputs():
     assert abs(float(sol.q[0]) - kp * ref / (k + kp)) < 1e-12
 
 
+def _feedback(kp, ref, t, q, qd, kin):
+    """u = k_p (theta_ref - theta): a module-level hook with array parameters."""
+    return kp * (ref - q[:1])
+
+
+def test_hook_array_parameters_reuse_program_and_take_gradients():
+    """A hook's array parameters are model arrays: no retrace, exact gradients.
+
+    The sprung joint under u = k_p (theta_ref - theta) has theta = k_p ref / (k + k_p),
+    so d theta / d k_p = k ref / (k + k_p)^2 and d theta / d ref = k_p / (k + k_p):
+    the hook given as ``equinox.Partial(f, kp, ref)`` must solve a second parameter
+    set with the first set's compiled program (JAX's trace events: a static hook
+    would trace and compile again) and give these derivatives through the statics'
+    implicit gradient (1e-9: the Newton tolerance).
+    """
+    from jax._src import monitoring
+
+    k = 2.0
+    bar = sj.RigidLink(sj.Joint("R", axis=(0, 0, 1.0), stiffness=k), length=0.2)
+
+    def theta(kp, ref):
+        hook = eqx.Partial(_feedback, kp, ref)
+        lk = sj.Linkage([bar], actuators=[sj.JointActuator(1)], actuator_strength=hook)
+        return sj.solve_statics(lk).q[0]
+
+    traced = []
+
+    def listen(event, seconds, **kwargs):
+        if event == "/jax/core/compile/jaxpr_trace_duration":
+            traced.append(kwargs.get("fun_name", "?"))
+
+    monitoring.register_event_duration_secs_listener(listen)
+    try:
+        for kp, ref in ((8.0, 0.5), (3.0, -0.2)):
+            n_first = len(traced)
+            th = float(theta(jnp.asarray(kp), jnp.asarray(ref)))
+            assert abs(th - kp * ref / (k + kp)) < 1e-12
+    finally:
+        monitoring.unregister_event_duration_listener(listen)
+    again = [name for name in traced[n_first:] if "_solve_statics" in name]
+    assert any("_solve_statics" in name for name in traced[:n_first])
+    assert not again, "a new hook parameter value traced the solve again"
+    kp, ref = 8.0, 0.5
+    d_kp, d_ref = jax.grad(theta, argnums=(0, 1))(jnp.asarray(kp), jnp.asarray(ref))
+    assert abs(float(d_kp) - k * ref / (k + kp) ** 2) < 1e-9
+    assert abs(float(d_ref) - kp / (k + kp)) < 1e-9
+    with pytest.raises(ValueError, match="Linkage.actuator_strength.*unhashable"):
+        sj.Linkage([bar], actuator_strength=eqx.Partial(_feedback, {1.0}, 0.5))
+
+
 def test_added_mass_adds_sum_of_weighted_JtMaJ():
     """M with added mass minus M without = sum_p w_p J_p^T M_a J_p (exact)."""
     rod = _rod((0, 1, 1, 0, 0, 0), 1)

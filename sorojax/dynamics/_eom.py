@@ -297,7 +297,11 @@ def forward_dynamics(
     q, qd = _as_q(linkage, q), _as_q(linkage, qd, "qd")
     t = jnp.asarray(t, dtype=q.dtype)
     data = precompute(linkage)
-    if not (linkage.actuators or linkage.closed_loops or linkage.custom_actuation):
+    if not (
+        linkage.actuators
+        or linkage.closed_loops
+        or linkage.custom_actuation is not None
+    ):
         return accelerations(linkage, data, t, q, qd, generalized_force)
     u_ = as_inputs(linkage, u, q.dtype)
     st = constrained_dynamics(linkage, data, t, q, qd, lambda _: u_, generalized_force)

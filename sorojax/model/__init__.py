@@ -28,6 +28,7 @@ from ._basis import (
     PaddedBasis as PaddedBasis,
 )
 from ._closure import ClosedLoopJoint as ClosedLoopJoint
+from ._hook import Hook as Hook
 from ._joint import Joint as Joint
 from ._layout import Layout as Layout
 from ._link import (

@@ -17,6 +17,7 @@ from jaxtyping import Array, ArrayLike, Float
 from ._actuation import Cable, CableAnchor, CableSpan, JointActuator
 from ._checks import check_se3, check_shape, is_concrete
 from ._closure import ClosedLoopJoint
+from ._hook import Hook, as_hook
 from ._layout import Layout, build_layout
 from ._link import AbstractLink, RigidLink, SoftLink
 from ._loads import PointWrench
@@ -50,6 +51,15 @@ class Linkage(eqx.Module):
             (n_inputs,)`` that replaces the given inputs ``u`` (the manual's
             CustomActuatorStrength: feedback control inside the solvers). Entries of
             prescribed joints are ignored (their inputs stay the given q(t)).
+
+            Each hook is stored as a :class:`~sorojax.model.Hook`. A plain function
+            is static: the compiled programs are keyed by the function object (a new
+            closure recompiles). To change a hook's parameters without recompiling,
+            or to differentiate with respect to them, give them as arrays in an
+            ``equinox.Partial(f, *args)`` of a module-level ``f`` (or an
+            ``equinox.Module`` with a ``__call__``): its array leaves are model
+            arrays, like E or a radius; its other values (Python numbers included)
+            stay static.
         added_mass: optional ``(n_points, 6, 6)`` added inertia (per unit length at
             rod points, absolute at rigid CMs) in body frames: the force
             ``-M_a etadot`` of a surrounding fluid, added to M (the manual's
@@ -65,11 +75,11 @@ class Linkage(eqx.Module):
     placements: Float[Array, "n_links 4 4"]
     gravity: Float[Array, "3"]
     point_wrenches: tuple[PointWrench, ...]
-    custom_wrench: Callable | None = eqx.field(static=True)
+    custom_wrench: Hook | None
     actuators: tuple[Cable | JointActuator, ...]
     closed_loops: tuple[ClosedLoopJoint, ...]
-    custom_actuation: Callable | None = eqx.field(static=True)
-    actuator_strength: Callable | None = eqx.field(static=True)
+    custom_actuation: Hook | None
+    actuator_strength: Hook | None
     added_mass: Float[Array, "n_points 6 6"] | None
     baumgarte_time: Float[Array, ""]
 
@@ -140,20 +150,15 @@ class Linkage(eqx.Module):
                 f"Linkage.custom_wrench = {custom_wrench!r}: give a function "
                 "(t, q, qd, kinematics) -> (n_points, 6) array, or None."
             )
+        # hooks: their array leaves are model arrays, the rest static (see Hook)
         self.links = links
         self.parents = parents
         self.placements = placements
         self.gravity = jnp.asarray(gravity, dtype=float)
         self.point_wrenches = point_wrenches
-        self.custom_wrench = custom_wrench
-        for name, fn in (
-            ("custom_actuation", custom_actuation),
-            ("actuator_strength", actuator_strength),
-        ):
-            if fn is not None and not callable(fn):
-                raise ValueError(f"Linkage.{name} = {fn!r}: give a function or None.")
-        self.custom_actuation = custom_actuation
-        self.actuator_strength = actuator_strength
+        self.custom_wrench = as_hook(custom_wrench, "custom_wrench")
+        self.custom_actuation = as_hook(custom_actuation, "custom_actuation")
+        self.actuator_strength = as_hook(actuator_strength, "actuator_strength")
         if isinstance(actuators, Cable | JointActuator):
             actuators = (actuators,)
         self.actuators = tuple(
