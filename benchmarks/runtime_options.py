@@ -11,6 +11,13 @@ made for large arrays:
   products and their neighbours as YNNPACK library fusions); "on" sets ``""`` (no
   such fusions: the products stay XLA's own). sorojax does not set it (faster warm
   runs, longer compiles: ``benchmarks/README.md``, tenth round).
+* ``--option scheduler``: ``--xla_cpu_enable_concurrency_optimized_scheduler``
+  (XLA's default true: a program's independent operations scheduled to run
+  concurrently on the thread pool); "on" sets false, as
+  ``sorojax.set_runtime_flags()`` does. XLA reads it only from ``XLA_FLAGS`` when
+  its backend starts, so each variant runs in processes of its own (``--rounds``
+  pairs, alternating which goes first), each compiling every program once and
+  timing ``--repeats`` warm runs; the medians over the processes are reported.
 
 Each program below is traced and lowered once and compiled by XLA ``--compiles``
 times with the option set ("on") and at XLA's default ("off"), the other options as
@@ -32,8 +39,8 @@ alike. The programs:
 
 Run::
 
-    .venv/bin/python benchmarks/runtime_options.py --option eigen|ynn \
-        [--repeats 5] [--compiles 3] [--order on off]
+    .venv/bin/python benchmarks/runtime_options.py --option eigen|ynn|scheduler \
+        [--repeats 5] [--compiles 3] [--rounds 2] [--order on off]
 
 Prints a table and writes
 ``benchmarks/results/runtime_options_<option>_<first>_first.json``. (Stop 33's first
@@ -69,6 +76,10 @@ OPTIONS = {
     "ynn": ("xla_cpu_experimental_ynn_fusion_type", ""),
 }
 """``--option``: the XLA option and its "on" value."""
+FLAGS = {
+    "scheduler": "--xla_cpu_enable_concurrency_optimized_scheduler=false",
+}
+"""``--option``: XLA flags read from ``XLA_FLAGS`` only (a process per variant)."""
 
 
 def programs():
@@ -141,13 +152,93 @@ def programs():
     }
 
 
+def _child(repeats):
+    """One process's variant: each program compiled once, then warm runs (JSON)."""
+    out = {}
+    for name, (fn, fn_args, run) in programs().items():
+        jitted = jax.jit(fn, compiler_options=sj.compiler_options())
+        t0 = time.perf_counter()
+        compiled = jitted.lower(*fn_args).compile()
+        compile_s = time.perf_counter() - t0
+        call = (
+            functools.partial(run, compiled)
+            if run is not None
+            else functools.partial(compiled, *fn_args)
+        )
+        times = interleaved_times({"x": call}, repeats)["x"]
+        out[name] = {"compile_s": compile_s, "warm_median_s": statistics.median(times)}
+    print(json.dumps(out))
+
+
+def _flag_variants(args):
+    """``--option`` an XLA flag: the variants in processes of their own."""
+    import os
+    import subprocess
+
+    flag = FLAGS[args.option]
+    name = flag.split("=")[0]
+    base = " ".join(
+        f for f in os.environ.get("XLA_FLAGS", "").split() if f.split("=")[0] != name
+    )
+    runs = {"on": [], "off": []}
+    for r in range(args.rounds):
+        for mode in args.order if r % 2 == 0 else args.order[::-1]:
+            env = dict(os.environ, XLA_FLAGS=f"{base} {flag}" if mode == "on" else base)
+            env["SOROJAX_CACHE_DIR"] = "off"
+            done = subprocess.run(
+                [sys.executable, __file__, "--child", "--repeats", str(args.repeats)],
+                env=env,
+                capture_output=True,
+                text=True,
+                check=True,
+            )
+            runs[mode].append(json.loads(done.stdout.strip().splitlines()[-1]))
+            print(f"round {r + 1}: {mode} done", flush=True)
+    out = {
+        "environment": environment(),
+        "option": flag,
+        "order": args.order,
+        "rounds": args.rounds,
+        "programs": {},
+    }
+    for prog in runs["on"][0]:
+        comp = {
+            m: statistics.median(x[prog]["compile_s"] for x in runs[m]) for m in runs
+        }
+        med = {
+            m: statistics.median(x[prog]["warm_median_s"] for x in runs[m])
+            for m in runs
+        }
+        out["programs"][prog] = {
+            "compile_median_s": comp,
+            "warm_median_s": med,
+            "per_process": {m: [x[prog] for x in runs[m]] for m in runs},
+        }
+        print(
+            f"{prog:26s} compile on {comp['on']:5.2f} s, off {comp['off']:5.2f} s; "
+            f"warm on {1e3 * med['on']:8.1f} ms, "
+            f"off {1e3 * med['off']:8.1f} ms (off/on {med['off'] / med['on']:.2f})",
+            flush=True,
+        )
+    RESULTS_DIR.mkdir(parents=True, exist_ok=True)
+    path = RESULTS_DIR / f"runtime_options_{args.option}_{args.order[0]}_first.json"
+    path.write_text(json.dumps(out, indent=2))
+    print(f"wrote {path}")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--option", choices=sorted(OPTIONS), default="eigen")
+    ap.add_argument("--option", choices=sorted({*OPTIONS, *FLAGS}), default="eigen")
     ap.add_argument("--repeats", type=int, default=5, help="timed runs of each")
     ap.add_argument("--compiles", type=int, default=3, help="compiles of each")
+    ap.add_argument("--rounds", type=int, default=2, help="process pairs (flags)")
     ap.add_argument("--order", nargs=2, default=["on", "off"], choices=["on", "off"])
+    ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.child:
+        return _child(args.repeats)
+    if args.option in FLAGS:
+        return _flag_variants(args)
     flag, value = OPTIONS[args.option]
     base = {k: v for k, v in sj.compiler_options().items() if k != flag}
     variants = {"on": {**base, flag: value}, "off": base}

@@ -58,6 +58,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import sorojax as sj  # noqa: E402
 from sorojax.viz import plot_configuration, plot_reference  # noqa: E402
 
+sj.set_runtime_flags()  # XLA's CPU runtime flags: before any JAX array exists
+
 R, E, LOAD = 100.0, 1e7, 600.0
 CLASS_ORDER = 6  # the size class of the convergence study (orders 3..6)
 PUBLISHED = np.array([-23.5, -13.4, 53.4])  # Bathe & Bolourchi 1979

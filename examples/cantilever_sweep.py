@@ -31,6 +31,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import sorojax as sj  # noqa: E402
 from sorojax.scenes import cantilever  # noqa: E402
 
+sj.set_runtime_flags()  # XLA's CPU runtime flags: before any JAX array exists
+
 L, R, E = 1.0, 0.01, 1e7
 EI = E * math.pi * R**4 / 4
 

@@ -79,6 +79,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 import sorojax as sj  # noqa: E402
 
+sj.set_runtime_flags()  # XLA's CPU runtime flags: before any JAX array exists
+
 LENGTHS = (0.4, 0.5)  # link lengths [m]
 X_MID = LENGTHS[0] / sum(LENGTHS)  # arm-normalised position of the middle
 DIRECTIONS = ((1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0))

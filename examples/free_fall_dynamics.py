@@ -30,6 +30,8 @@ import sorojax as sj  # noqa: E402
 from sorojax.scenes import free_fall_q0, free_fall_rod  # noqa: E402
 from sorojax.viz import animate, plot_time_series  # noqa: E402
 
+sj.set_runtime_flags()  # XLA's CPU runtime flags: before any JAX array exists
+
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])

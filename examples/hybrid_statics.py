@@ -31,6 +31,8 @@ import sorojax as sj  # noqa: E402
 from sorojax.scenes import demo_linkage  # noqa: E402
 from sorojax.viz import plot_configuration, plot_reference  # noqa: E402
 
+sj.set_runtime_flags()  # XLA's CPU runtime flags: before any JAX array exists
+
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -37,6 +37,8 @@ import sorojax as sj  # noqa: E402
 from sorojax.scenes import l_beam  # noqa: E402
 from sorojax.viz import plot_configuration, plot_reference  # noqa: E402
 
+sj.set_runtime_flags()  # XLA's CPU runtime flags: before any JAX array exists
+
 L, RADIUS, E, POISSON = 1.0, 0.01, 200e9, 0.3
 
 

@@ -79,6 +79,8 @@ import sorojax as sj  # noqa: E402
 from sorojax.scenes import l_beam as l_beam_scene  # noqa: E402
 from sorojax.viz import plot_configuration, plot_reference  # noqa: E402
 
+sj.set_runtime_flags()  # XLA's CPU runtime flags: before any JAX array exists
+
 L, SIDE, E, POISSON, RHO, GRAVITY = 0.7, 0.05, 10e6, 0.5, 1200.0, 9.81
 PUBLISHED_GVS, PUBLISHED_ANSYS = 0.1298, 0.1327  # m
 SOROSIM_ORDERS = (2, 1)  # angular quadratic, linear strains linear: 30 DoF

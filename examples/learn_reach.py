@@ -43,6 +43,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import sorojax as sj  # noqa: E402
 from sorojax._mechanisms import cable_manipulator  # noqa: E402
 
+sj.set_runtime_flags()  # XLA's CPU runtime flags: before any JAX array exists
+
 ETA = 3e4  # material damping [Pa s], as cable_manipulator.py
 PERIOD = 0.05  # control period [s]
 EPISODE = 20  # periods per episode (1 s)

@@ -54,6 +54,8 @@ from sorojax.viz import (  # noqa: E402
     plot_reference,
 )
 
+sj.set_runtime_flags()  # XLA's CPU runtime flags: before any JAX array exists
+
 ANGLE = -math.pi / 4  # statics: revolute angle [rad]
 TENSION = 50.0  # cable tension [N] (statics; end of the ramp in dynamics)
 

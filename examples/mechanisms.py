@@ -52,6 +52,8 @@ from sorojax._mechanisms import (  # noqa: E402
 )
 from sorojax.viz import animate  # noqa: E402
 
+sj.set_runtime_flags()  # XLA's CPU runtime flags: before any JAX array exists
+
 MECHANISMS = {
     "four_bar": (four_bar, four_bar_assemble),
     "slider_crank": (slider_crank, slider_crank_assemble),

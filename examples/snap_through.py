@@ -47,6 +47,8 @@ import sorojax as sj  # noqa: E402
 from sorojax.scenes import pinned_elastica, von_mises_truss  # noqa: E402
 from sorojax.viz import plot_equilibrium_path  # noqa: E402
 
+sj.set_runtime_flags()  # XLA's CPU runtime flags: before any JAX array exists
+
 P_END = 1.5  # last load factor of the truss (path and sweep)
 P_END_ELASTICA = 1.3  # last P / P_cr of the elastica (end rotation ~80 degrees)
 

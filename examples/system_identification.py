@@ -70,6 +70,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 import sorojax as sj  # noqa: E402
 
+sj.set_runtime_flags()  # XLA's CPU runtime flags: before any JAX array exists
+
 NAMES = ("E", "eta", "m_tip")
 UNITS = ("Pa", "Pa s", "kg")
 TRUE = (1e7, 1e5, 0.05)  # E [Pa], eta [Pa s], tip mass [kg]

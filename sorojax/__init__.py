@@ -25,6 +25,7 @@ _LAZY = {
     "compile_mode": "._jit",
     "jit": "._jit",
     "prepare": "._jit",
+    "set_runtime_flags": "._jit",
     "RESULTS": "._results",
     "StaticsSolution": "._results",
     "sweep": "._sweep",
@@ -141,6 +142,7 @@ if TYPE_CHECKING:  # static analysers see the names as plain imports
     from ._jit import compiler_options as compiler_options
     from ._jit import jit as jit
     from ._jit import prepare as prepare
+    from ._jit import set_runtime_flags as set_runtime_flags
     from ._recompile import RecompilationWarning as RecompilationWarning
     from ._results import RESULTS as RESULTS
     from ._results import StaticsSolution as StaticsSolution

@@ -84,6 +84,58 @@ def _probed_options() -> dict[str, Any]:
     return {k: v for k, v in CPU_OPTIONS.items() if _accepted({k: v})}
 
 
+RUNTIME_FLAGS: tuple[str, ...] = (
+    # XLA's CPU runtime schedules a program's independent operations to run
+    # concurrently on its thread pool; sorojax's are tiny (6 x 6 blocks), and the
+    # hand-offs cost more than the overlap gains: run one after another, warm
+    # programs run 1.2-1.8x faster (the PD-controlled arm's 8 s 2.2-3.0 -> 1.6-1.8
+    # s; benchmarks/README.md, thirteenth round). XLA reads it only from XLA_FLAGS.
+    "--xla_cpu_enable_concurrency_optimized_scheduler=false",
+)
+"""XLA flags :func:`set_runtime_flags` adds (the CPU runtime's, for small programs)."""
+
+_RUNTIME_FLAGS_JAXLIB = "0.10."  # the jaxlib line they are verified on
+
+
+def set_runtime_flags() -> bool:
+    """Add :data:`RUNTIME_FLAGS` to ``XLA_FLAGS`` for this process's CPU backend.
+
+    XLA reads these flags from the environment variable ``XLA_FLAGS`` once, when JAX
+    starts its backend (the first array or compile), and not from a program's
+    compiler options, so sorojax cannot set them per program; call this first
+    thing in a script, before any JAX array exists (``sorojax``'s command line and
+    examples do). They change how XLA's CPU runtime runs a compiled program (its
+    operations one after another, not scheduled for concurrency), not what it
+    computes: the results agree to rounding (the order of operations may change
+    the last bits; tested). They apply to every JAX program of the
+    process, yours included; a program of large operations (a neural network's
+    matrix products) may run slower without the concurrency.
+
+    Nothing is changed, and False returned, when JAX's backend has started already,
+    with ``SOROJAX_XLA_OPTIONS=off``, or on a jaxlib other than the line the flags
+    were verified on (an unknown XLA flag stops the process). A flag already in
+    ``XLA_FLAGS`` (yours, with any value) is kept.
+
+    Returns:
+        Whether the flags are in ``XLA_FLAGS`` for the backend JAX will start.
+    """
+    import importlib.metadata
+
+    from jax._src import xla_bridge
+
+    if os.environ.get("SOROJAX_XLA_OPTIONS", "").lower() == "off":
+        return False
+    if xla_bridge.backends_are_initialized():
+        return False
+    if not importlib.metadata.version("jaxlib").startswith(_RUNTIME_FLAGS_JAXLIB):
+        return False
+    current = os.environ.get("XLA_FLAGS", "")
+    names = {f.split("=")[0] for f in current.split()}
+    missing = [f for f in RUNTIME_FLAGS if f.split("=")[0] not in names]
+    os.environ["XLA_FLAGS"] = " ".join([current, *missing]).strip()
+    return True
+
+
 try:  # private: a JAX without it gets XLA's defaults everywhere
     from jax._src.core import trace_state_clean as _trace_state_clean
 except ImportError:  # pragma: no cover

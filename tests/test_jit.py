@@ -79,6 +79,72 @@ def test_this_xla_knows_the_options():
     assert sj.compiler_options() == sjit.CPU_OPTIONS
 
 
+_RUNTIME_SCRIPT = """
+import json, os, sys
+import jax
+jax.config.update("jax_enable_x64", True)
+import numpy as np
+import sorojax as sj
+out = {"before": os.environ.get("XLA_FLAGS", "")}
+os.environ["SOROJAX_XLA_OPTIONS"] = "off"
+out["off"] = sj.set_runtime_flags()
+del os.environ["SOROJAX_XLA_OPTIONS"]
+out["set"] = sj.set_runtime_flags()
+out["flags"] = os.environ.get("XLA_FLAGS", "")
+rod = sj.SoftLink(
+    [sj.Division(0.5, sj.CircularSection(0.01), sj.LegendreBasis((0, 1, 1, 0, 0, 0), 1))],
+    sj.Material(1e6, 0.5, rho=1000.0),
+)
+lk = sj.Linkage([rod], gravity=(0.0, 0.0, -9.81))
+q = np.linspace(-1.0, 1.0, lk.n_dof)
+traj = sj.simulate(lk, 0.05, q, solver="tsit5", n_save=3)
+out["q"] = np.asarray(traj.q).tobytes().hex()
+out["after_start"] = sj.set_runtime_flags()
+print(json.dumps(out))
+"""
+
+
+def _run_runtime_script(xla_flags):
+    import json
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "SOROJAX_XLA_OPTIONS"}
+    env["XLA_FLAGS"] = xla_flags
+    env["SOROJAX_CACHE_DIR"] = "off"
+    done = subprocess.run(
+        [sys.executable, "-c", _RUNTIME_SCRIPT],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=True,
+    )
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def test_set_runtime_flags_before_the_backend_only_same_results():
+    """``set_runtime_flags`` adds its flags to XLA_FLAGS only before JAX's backend
+    starts (XLA reads them then), not with SOROJAX_XLA_OPTIONS=off, keeps a value the
+    user set, and changes how programs run, not what they compute: a short
+    integration agrees to rounding (1e-13; the operations' order may change the
+    last bits) with the flag and with the user's opposite value (fresh processes:
+    the flags are read once per process)."""
+    if not jax.__version__.startswith("0.10."):  # the verified jaxlib line
+        pytest.skip(f"the flags were verified with jax 0.10; this is {jax.__version__}")
+    name = "--xla_cpu_enable_concurrency_optimized_scheduler"
+    ours = _run_runtime_script("--xla_backend_optimization_level=0")
+    assert ours["off"] is False and ours["set"] is True
+    assert ours["flags"] == f"--xla_backend_optimization_level=0 {name}=false"
+    assert ours["after_start"] is False  # the backend has started
+    level = "--xla_backend_optimization_level=0"
+    theirs = _run_runtime_script(f"{level} {name}=true")
+    assert theirs["set"] is True and theirs["flags"] == f"{level} {name}=true"  # kept
+    a, b = (np.frombuffer(bytes.fromhex(r["q"])) for r in (ours, theirs))
+    np.testing.assert_allclose(a, b, rtol=1e-13, atol=1e-15)
+
+
 def test_jit_uses_the_options_at_top_level_only(monkeypatch):
     """``sorojax._jit.jit`` compiles top-level calls with the probed options (built
     once, on the first call) and calls inside another trace (jit, grad, vmap) with a
