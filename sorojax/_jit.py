@@ -85,11 +85,11 @@ def _probed_options() -> dict[str, Any]:
 
 
 RUNTIME_FLAGS: tuple[str, ...] = (
-    # XLA's CPU runtime schedules a program's independent operations to run
-    # concurrently on its thread pool; sorojax's are tiny (6 x 6 blocks), and the
-    # hand-offs cost more than the overlap gains: run one after another, warm
-    # programs run 1.2-1.8x faster (the PD-controlled arm's 8 s 2.2-3.0 -> 1.6-1.8
-    # s; benchmarks/README.md, thirteenth round). XLA reads it only from XLA_FLAGS.
+    # XLA's CPU scheduler orders a program's operations for concurrency on the
+    # runtime's thread pool; sorojax's are tiny (6 x 6 blocks). Without it: large
+    # programs compile 3-10 % faster, warm runs equal or up to 1.3x faster (the
+    # hybrid's dynamics), up to 1.8x on a loaded machine (benchmarks/README.md,
+    # thirteenth round). XLA reads it only from XLA_FLAGS.
     "--xla_cpu_enable_concurrency_optimized_scheduler=false",
 )
 """XLA flags :func:`set_runtime_flags` adds (the CPU runtime's, for small programs)."""
