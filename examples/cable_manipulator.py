@@ -69,20 +69,24 @@ KP, KD = 20.0, 20.0  # PD gains [N/m], [N s/m] (per unit differential tension)
 PRETENSION = 1.0  # [N] on every cable
 
 
-def split(f):
-    """Differential tensions (x, y) -> increments of cables (+y, +z, -y, -z)."""
-    return jnp.stack([f[1], f[0], -f[1], -f[0]])
+SPLIT = np.array([[0.0, 1.0], [1.0, 0.0], [0.0, -1.0], [-1.0, 0.0]])
+"""Differential tensions (x, y) -> increments of cables (+y, +z, -y, -z):
+``SPLIT @ f``, on the host for NumPy ``f`` and in the program for traced ``f``."""
 
 
 def tensions(s, pretension=PRETENSION):
-    """Feedforward tensions for differential tensions ``s`` = (s_x, s_y) [N]."""
-    return pretension + jnp.maximum(split(s), 0.0)
+    """Feedforward tensions for differential tensions ``s`` = (s_x, s_y) [N].
+
+    On the host (NumPy): the inverse statics' loop runs no JAX operation of its
+    own, each of which would compile a small program on first use.
+    """
+    return pretension + np.maximum(SPLIT @ np.asarray(s, dtype=float), 0.0)
 
 
 def tip_of(linkage, T):
     """Equilibrium tip position [m] and solution for tensions ``T``."""
-    sol = sj.solve_statics(linkage, u=jnp.asarray(T, dtype=float))
-    return np.asarray(sj.tip_pose(linkage, sol.q)[:3, 3]), sol
+    sol = sj.solve_statics(linkage, u=np.asarray(T, dtype=float))
+    return np.asarray(sj.tip_pose(linkage, sol.q))[:3, 3], sol
 
 
 def inverse_statics(linkage, target_xy, tol=1e-12, max_iter=20, h=1e-5):
@@ -99,16 +103,16 @@ def inverse_statics(linkage, target_xy, tol=1e-12, max_iter=20, h=1e-5):
     """
     s = np.zeros(2)
     for it in range(max_iter):
-        tip = tip_of(linkage, tensions(jnp.asarray(s)))[0]
+        tip = tip_of(linkage, tensions(s))[0]
         r = tip[:2] - target_xy
         if np.abs(r).max() < tol:
-            return np.asarray(tensions(jnp.asarray(s))), tip, it
+            return np.asarray(tensions(s)), tip, it
         J = np.zeros((2, 2))
         for k in range(2):
             ds = np.zeros(2)
             ds[k] = h
-            plus = tip_of(linkage, tensions(jnp.asarray(s + ds)))[0][:2]
-            minus = tip_of(linkage, tensions(jnp.asarray(s - ds)))[0][:2]
+            plus = tip_of(linkage, tensions(s + ds))[0][:2]
+            minus = tip_of(linkage, tensions(s - ds))[0][:2]
             J[:, k] = (plus - minus) / (2 * h)
         s = s - np.linalg.solve(J, r)
     raise RuntimeError(f"inverse statics: tip error {np.abs(r).max():.1e} m")
@@ -119,7 +123,7 @@ def pd_law(tip_point, target, T_ff, kp, kd, t, q, qd, kin):
     g = kin.g[tip_point]
     v = g[:3, :3] @ kin.eta[tip_point, 3:]  # body -> world linear velocity
     f = kp * (target[:2] - g[:2, 3]) - kd * v[:2]
-    return jnp.maximum(T_ff + split(f) / 2, 0.0)
+    return jnp.maximum(T_ff + SPLIT @ f / 2, 0.0)
 
 
 def pd_hook(tip_point, target, T_ff, kp=KP, kd=KD):

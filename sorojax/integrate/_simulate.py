@@ -423,15 +423,18 @@ def _inputs_at(linkage, data, ts, ys, u_fn, u_const, generalized_force):
 
 
 @jit
-def _saved_inputs(linkage, ts, ys, u_fn, u_const, generalized_force):
+def _saved_inputs(linkage, ts, q, qd, u_fn, u_const, generalized_force):
     """:func:`_inputs_at` as a program of its own, for top-level ``simulate`` calls.
 
     It holds a copy of the right-hand side: inside the integration's program it
     added ~1.5 s to that program's compile at XLA's default level (the manual
     hybrid's dynamics 2.6 -> 4.1 s), where on its own it is compiled in sorojax's
     tiers (at -O0: 0.9 s; it runs once per trajectory). With every program at the
-    default level (``SOROJAX_COMPILE=full``) it stays inside.
+    default level (``SOROJAX_COMPILE=full``) it stays inside. It takes ``q`` and
+    ``qd`` as the trajectory holds them (joined here, not by an eager operation that
+    would compile a program of its own).
     """
+    ys = jnp.concatenate([q, qd], axis=1)
     return _inputs_at(
         linkage, precompute(linkage), ts, ys, u_fn, u_const, generalized_force
     )
@@ -529,9 +532,8 @@ def simulate(
             if ahead is not None:
                 concurrent.futures.wait([ahead])
         if plan.separate:
-            ys = jnp.concatenate([traj.q, traj.qd], axis=1)
-            _, _, _, u_fn, u_const, gf = plan.inputs_args
-            inputs = _saved_inputs(linkage, traj.t, ys, u_fn, u_const, gf)
+            _, _, _, _, u_fn, u_const, gf = plan.inputs_args
+            inputs = _saved_inputs(linkage, traj.t, traj.q, traj.qd, u_fn, u_const, gf)
             traj = eqx.tree_at(
                 lambda tr: (tr.u, tr.efforts, tr.lam),
                 traj,
@@ -627,11 +629,12 @@ def _plan(
         linkage, y0, t0_, t1_, ts_, solver_, controller, dt0_, max_steps,
         generalized_force, meter, adjoint, u_fn, u_const, inline,
     )  # fmt: skip
-    shapes = np.zeros((ts_.shape[0], y0.shape[0]), y0.dtype)  # shapes only
+    # q, qd of the saved states: shapes only
+    shapes = np.zeros((ts_.shape[0], y0.shape[0] // 2), y0.dtype)
     return _Plan(
         args,
         not inline and _needs_inputs(linkage),
-        (linkage, ts_, shapes, u_fn, u_const, generalized_force),
+        (linkage, ts_, shapes, shapes, u_fn, u_const, generalized_force),
     )
 
 
