@@ -333,8 +333,9 @@ def test_hook_array_parameters_reuse_program_and_take_gradients():
     so d theta / d k_p = k ref / (k + k_p)^2 and d theta / d ref = k_p / (k + k_p):
     the hook given as ``equinox.Partial(f, kp, ref)`` must solve a second parameter
     set with the first set's compiled program (JAX's trace events: a static hook
-    would trace and compile again) and give these derivatives through the statics'
-    implicit gradient (1e-9: the Newton tolerance).
+    would trace and compile again), solve a batch of them under ``jax.vmap``, and
+    give these derivatives through the statics' implicit gradient (1e-9: the Newton
+    tolerance).
     """
     from jax._src import monitoring
 
@@ -363,6 +364,9 @@ def test_hook_array_parameters_reuse_program_and_take_gradients():
     again = [name for name in traced[n_first:] if "_solve_statics" in name]
     assert any("_solve_statics" in name for name in traced[:n_first])
     assert not again, "a new hook parameter value traced the solve again"
+    refs = jnp.array([-0.3, 0.1, 0.4])  # vmap over stacked hook parameters
+    batch = jax.vmap(theta, in_axes=(None, 0))(jnp.asarray(8.0), refs)
+    np.testing.assert_allclose(batch, 8.0 * refs / (k + 8.0), rtol=0, atol=1e-12)
     kp, ref = 8.0, 0.5
     d_kp, d_ref = jax.grad(theta, argnums=(0, 1))(jnp.asarray(kp), jnp.asarray(ref))
     assert abs(float(d_kp) - k * ref / (k + kp) ** 2) < 1e-9
