@@ -152,6 +152,23 @@ def programs():
     }
 
 
+def _report(name, comp, med):
+    """One program's row: compile and warm medians, on against off."""
+    print(
+        f"{name:26s} compile on {comp['on']:5.2f} s, off {comp['off']:5.2f} s; "
+        f"warm on {1e3 * med['on']:8.1f} ms, "
+        f"off {1e3 * med['off']:8.1f} ms (off/on {med['off'] / med['on']:.2f})",
+        flush=True,
+    )
+
+
+def _write(args, out):
+    RESULTS_DIR.mkdir(parents=True, exist_ok=True)
+    path = RESULTS_DIR / f"runtime_options_{args.option}_{args.order[0]}_first.json"
+    path.write_text(json.dumps(out, indent=2))
+    print(f"wrote {path}")
+
+
 def _child(repeats):
     """One process's variant: each program compiled once, then warm runs (JSON)."""
     out = {}
@@ -214,16 +231,8 @@ def _flag_variants(args):
             "warm_median_s": med,
             "per_process": {m: [x[prog] for x in runs[m]] for m in runs},
         }
-        print(
-            f"{prog:26s} compile on {comp['on']:5.2f} s, off {comp['off']:5.2f} s; "
-            f"warm on {1e3 * med['on']:8.1f} ms, "
-            f"off {1e3 * med['off']:8.1f} ms (off/on {med['off'] / med['on']:.2f})",
-            flush=True,
-        )
-    RESULTS_DIR.mkdir(parents=True, exist_ok=True)
-    path = RESULTS_DIR / f"runtime_options_{args.option}_{args.order[0]}_first.json"
-    path.write_text(json.dumps(out, indent=2))
-    print(f"wrote {path}")
+        _report(prog, comp, med)
+    _write(args, out)
 
 
 def main(argv=None):
@@ -280,16 +289,8 @@ def main(argv=None):
             "warm_median_s": med,
             "warm_s": times,
         }
-        print(
-            f"{name:26s} compile on {comp['on']:5.2f} s, off {comp['off']:5.2f} s; "
-            f"warm on {1e3 * med['on']:8.1f} ms, "
-            f"off {1e3 * med['off']:8.1f} ms (off/on {med['off'] / med['on']:.2f})",
-            flush=True,
-        )
-    RESULTS_DIR.mkdir(parents=True, exist_ok=True)
-    path = RESULTS_DIR / f"runtime_options_{args.option}_{args.order[0]}_first.json"
-    path.write_text(json.dumps(out, indent=2))
-    print(f"wrote {path}")
+        _report(name, comp, med)
+    _write(args, out)
 
 
 if __name__ == "__main__":

@@ -108,6 +108,39 @@ def compiles(monkeypatch):
     return seen
 
 
+_EVENTS = {
+    "trace": "/jax/core/compile/jaxpr_trace_duration",
+    "lower": "/jax/core/compile/jaxpr_to_mlir_module_duration",
+    "compile": "/jax/core/compile/backend_compile_duration",
+}
+
+
+@pytest.fixture
+def jax_events():
+    """``with jax_events("compile") as names:`` collects the function names of JAX's
+    events of that kind ("trace", "lower" or "compile": ``jax._src.monitoring``)
+    while the block runs."""
+    import contextlib
+
+    from jax._src import monitoring
+
+    @contextlib.contextmanager
+    def collect(kind):
+        names = []
+
+        def listen(event, seconds, **kwargs):
+            if event == _EVENTS[kind]:
+                names.append(kwargs.get("fun_name", "?"))
+
+        monitoring.register_event_duration_secs_listener(listen)
+        try:
+            yield names
+        finally:
+            monitoring.unregister_event_duration_listener(listen)
+
+    return collect
+
+
 @pytest.fixture
 def key():
     """A fixed PRNG key."""

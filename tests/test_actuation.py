@@ -326,7 +326,7 @@ def _feedback(kp, ref, t, q, qd, kin):
     return kp * (ref - q[:1])
 
 
-def test_hook_array_parameters_reuse_program_and_take_gradients():
+def test_hook_array_parameters_reuse_program_and_take_gradients(jax_events):
     """A hook's array parameters are model arrays: no retrace, exact gradients.
 
     The sprung joint under u = k_p (theta_ref - theta) has theta = k_p ref / (k + k_p),
@@ -337,8 +337,6 @@ def test_hook_array_parameters_reuse_program_and_take_gradients():
     give these derivatives through the statics' implicit gradient (1e-9: the Newton
     tolerance).
     """
-    from jax._src import monitoring
-
     k = 2.0
     bar = sj.RigidLink(sj.Joint("R", axis=(0, 0, 1.0), stiffness=k), length=0.2)
 
@@ -347,20 +345,11 @@ def test_hook_array_parameters_reuse_program_and_take_gradients():
         lk = sj.Linkage([bar], actuators=[sj.JointActuator(1)], actuator_strength=hook)
         return sj.solve_statics(lk).q[0]
 
-    traced = []
-
-    def listen(event, seconds, **kwargs):
-        if event == "/jax/core/compile/jaxpr_trace_duration":
-            traced.append(kwargs.get("fun_name", "?"))
-
-    monitoring.register_event_duration_secs_listener(listen)
-    try:
+    with jax_events("trace") as traced:
         for kp, ref in ((8.0, 0.5), (3.0, -0.2)):
             n_first = len(traced)
             th = float(theta(jnp.asarray(kp), jnp.asarray(ref)))
             assert abs(th - kp * ref / (k + kp)) < 1e-12
-    finally:
-        monitoring.unregister_event_duration_listener(listen)
     again = [name for name in traced[n_first:] if "_solve_statics" in name]
     assert any("_solve_statics" in name for name in traced[:n_first])
     assert not again, "a new hook parameter value traced the solve again"

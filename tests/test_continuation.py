@@ -107,13 +107,11 @@ def test_von_mises_truss_snap_through_folds_at_analytic_limit_load():
     assert failed or apex < y[i0] - 0.02, f"converged near the fold: apex {apex}"
 
 
-def test_prepared_continuation_compiles_nothing_along_the_path():
+def test_prepared_continuation_compiles_nothing_along_the_path(jax_events):
     """``sorojax.prepare(sorojax.continuation, ...)`` compiles the corrector of a
     later call beforehand (a structure and settings of its own here: ``max_iter``
     11); the call then compiles no corrector, and its path equals the one traced
     with the corrector compiled at the call (the same program, bit for bit)."""
-    from jax._src import monitoring
-
     from sorojax.statics._continuation import _correct
 
     lk, _ = von_mises_truss()
@@ -121,17 +119,8 @@ def test_prepared_continuation_compiles_nothing_along_the_path():
     ahead = sj.prepare(sj.continuation, lk, 0.0, 0.5, **settings)
     assert ahead is not None
     ahead.result()
-    compiled = []
-
-    def listen(event, seconds, **kwargs):
-        if event == "/jax/core/compile/backend_compile_duration":
-            compiled.append(kwargs.get("fun_name", "?"))
-
-    monitoring.register_event_duration_secs_listener(listen)
-    try:
+    with jax_events("compile") as compiled:
         path = sj.continuation(lk, 0.0, 0.5, **settings)
-    finally:
-        monitoring.unregister_event_duration_listener(listen)
     assert not [name for name in compiled if "_correct" in name], compiled
     _correct.prepared.clear()  # compiled at the call now
     _correct.programs.clear()

@@ -443,7 +443,9 @@ def test_prepare_rejects_other_functions_and_does_nothing_in_a_trace(tiered, arm
     assert seen == [None] and not f.programs and not f.prepared and not tiered
 
 
-def test_prepared_simulate_and_statics_compile_nothing_at_their_calls(tiered, arm):
+def test_prepared_simulate_and_statics_compile_nothing_at_their_calls(
+    tiered, arm, jax_events
+):
     """``prepare(simulate, ...)`` with the arguments of a later call (other values,
     the same shapes and settings) compiles its integration and its efforts'
     programs beforehand; ``prepare(solve_statics, ...)`` likewise. The calls then
@@ -461,20 +463,10 @@ def test_prepared_simulate_and_statics_compile_nothing_at_their_calls(tiered, ar
         for program in list(fn.programs.values()):
             if isinstance(program, concurrent.futures.Future):
                 program.result()
-    compiled = []  # the programs XLA compiles from here on (JAX's events)
-
-    def listen(event, seconds, **kwargs):
-        if event == "/jax/core/compile/backend_compile_duration":
-            compiled.append(kwargs.get("fun_name", "?"))
-
-    from jax._src import monitoring
-
-    monitoring.register_event_duration_secs_listener(listen)
-    try:
+    # the programs XLA compiles from here on (JAX's events)
+    with jax_events("compile") as compiled:
         sol = sj.solve_statics(arm, q, u=jnp.array([0.5]))
         traj = sj.simulate(arm, 0.3, sol.q, **settings)
-    finally:
-        monitoring.unregister_event_duration_listener(listen)
     # (single operations outside the programs may compile on first use)
     ours = ("_simulate", "_saved_inputs", "_solve_statics")
     programs = [name for name in compiled if any(p in name for p in ours)]
