@@ -8,6 +8,7 @@ side must be traced once per program however often diffrax calls it.
 """
 
 import concurrent.futures
+import time
 import warnings
 
 import jax
@@ -505,6 +506,32 @@ def test_tiered_programs_calls_below_the_budget_stay_at_O0(tiered):
         f(x)
     assert len(tiered) == 1 and program.full is None
     assert 0.0 < program.spent < 60.0
+
+
+def test_tiered_call_on_an_input_still_computing_does_not_wait(tiered):
+    """JAX dispatches a compiled program asynchronously: a tiered program whose
+    input is still being computed (a slow program's output) returns without waiting
+    for it, and that wait is not counted as its run time (before, it was: a cheap
+    program after a long integration was promoted at its first call). Its result
+    is the same."""
+    slow = jax.jit(
+        lambda x: jax.lax.fori_loop(0, 10000, lambda i, y: jnp.sin(y @ y.T) / 4, x)
+    )
+    x = jnp.eye(40) * 0.1
+    jax.block_until_ready(slow(x))  # compiled; measure one run
+    start = time.perf_counter()
+    expect = jax.block_until_ready(slow(x))
+    run = time.perf_counter() - start
+    f = sjit.jit(lambda y: jnp.sum(y, axis=0))
+    f(expect)  # compiled at -O0, its input ready: timed
+    (program,) = f.programs.values()
+    spent = program.spent
+    pending = slow(x)
+    assert not pending.is_ready(), "the slow program finished before the call"
+    out = f(pending)
+    assert program.spent == spent  # the call was not timed
+    np.testing.assert_array_equal(np.asarray(out), np.asarray(jnp.sum(expect, 0)))
+    assert run > 0.05, f"the slow program took only {run:.3f} s"
 
 
 def test_tiered_mode_applies_to_top_level_calls_of_sorojax_functions(
