@@ -119,10 +119,15 @@ def main(argv=None):
     # ----------------------------------------------------------------- dynamics
     rest = sj.solve_statics(linkage, q_ref, u=jnp.zeros(2))
     t0 = time.perf_counter()
-    traj = sj.simulate(linkage, args.t1, rest.q, **dynamics)
+    # throw=False: the call returns while the integration runs (JAX dispatches it
+    # asynchronously), so the closure errors' program compiles meanwhile.
+    traj = sj.simulate(linkage, args.t1, rest.q, throw=False, **dynamics)
+    closure = traj.closure_errors(linkage)
     jax.block_until_ready(traj.q)
     wall = time.perf_counter() - t0
-    err = np.asarray(traj.closure_errors(linkage))
+    if traj.result != sj.RESULTS.successful:
+        raise RuntimeError(f"the dynamics failed: {traj.result}")
+    err = np.asarray(closure)
     print(
         f"dynamics over {args.t1:g} s, solver {traj.solver}: {int(traj.num_steps)} "
         f"steps ({int(traj.num_rejected_steps)} rejected), {wall:.1f} s incl. "
