@@ -103,9 +103,10 @@ def set_runtime_flags() -> bool:
     XLA reads these flags from the environment variable ``XLA_FLAGS`` once, when JAX
     starts its backend (the first array or compile), and not from a program's
     compiler options, so sorojax cannot set them per program; call this first
-    thing in a script, before any JAX array exists (``sorojax``'s command line and
-    examples do). They change how XLA's CPU runtime runs a compiled program (its
-    operations one after another, not scheduled for concurrency), not what it
+    thing in a script, before any JAX array exists (the examples do; ``sorojax
+    demo``, whose one program runs for a millisecond, does not). They change how
+    XLA's CPU runtime runs a compiled program (its operations one after another,
+    not scheduled for concurrency), not what it
     computes: the results agree to rounding (the order of operations may change
     the last bits; tested). They apply to every JAX program of the
     process, yours included; a program of large operations (a neural network's
