@@ -74,9 +74,11 @@ def statics_sweep(linkage, assemble, angles, offset=0.02):
     rank = None
     for th in angles:
         q0 = assemble(float(th)) + offset
-        sol = sj.solve_statics(linkage, q0, u=jnp.array([th]))
+        # host arrays in and out: no eager JAX operation (each compiles a small
+        # program on first use, which waits while a prepared compile runs)
+        sol = sj.solve_statics(linkage, q0, u=np.array([th]))
         out["q"].append(np.asarray(sol.q))
-        out["torque"].append(float(sol.efforts[0]))
+        out["torque"].append(float(np.asarray(sol.efforts)[0]))
         out["residual"].append(float(sol.residual_norm))
         out["constraint_error"].append(float(sol.constraint_error))
         out["steps"].append(int(sol.num_steps))
@@ -183,15 +185,15 @@ def main(argv=None):
                 linkage, assemble, args.omega, args.t1, args.rtol, args.n_save
             )
             res |= {"traj": traj, "drift": drift}
-            tau = np.asarray(traj.efforts[:, 0])
+            tau = np.asarray(traj.efforts)[:, 0]
             print(
                 f"{name}: {args.t1} s at {args.omega:.3f} rad/s, "
                 f"{int(traj.num_steps)} steps, max drift {drift.max():.1e}, "
                 f"crank torque {tau.min():+.4f} .. {tau.max():+.4f} N m"
             )
             if name == "slider_crank":
-                theta = np.asarray(traj.q[:, 0])
-                x = np.asarray(traj.q[:, 2]) + SLIDER_CRANK["slider"] / 2
+                theta = np.asarray(traj.q)[:, 0]
+                x = np.asarray(traj.q)[:, 2] + SLIDER_CRANK["slider"] / 2
                 x_ref = slider_crank_position(theta)
                 res |= {"slider_x": x, "slider_x_ref": x_ref}
                 print(f"slider: max |x - formula| = {np.abs(x - x_ref).max():.1e} m")
@@ -248,11 +250,11 @@ def _plot(results, args, path):
         )
         if dyn:
             tr = res["traj"]
-            th = np.mod(np.asarray(tr.q[:, 0]), 2 * math.pi)
+            th = np.mod(np.asarray(tr.q)[:, 0], 2 * math.pi)
             order = np.argsort(th)
             ax.plot(
                 th[order],
-                np.asarray(tr.efforts[:, 0])[order],
+                np.asarray(tr.efforts)[:, 0][order],
                 "-",
                 color=colors[name],
                 lw=1,
