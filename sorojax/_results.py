@@ -4,7 +4,11 @@ Solvers never return silent NaNs: each solution carries a ``RESULTS`` code, and 
 points take ``throw`` (raise on failure) as optimistix and diffrax do.
 """
 
+from collections.abc import Callable
+from typing import TypeVar
+
 import equinox as eqx
+import jax
 from jaxtyping import Array, Bool, Float, Int
 
 
@@ -79,3 +83,35 @@ class StaticsSolution(eqx.Module):
     stable: Bool[Array, ""]
     n_negative: Int[Array, ""]
     min_eigenvalue: Float[Array, ""]
+
+
+def failed(result: RESULTS) -> bool | Array:
+    """Whether ``result`` is not ``RESULTS.successful``.
+
+    A Python bool for a concrete code, compared on the host (``!=`` on the arrays
+    would compile and run a program of its own); a traced boolean under a trace.
+    """
+    code = result._value
+    if isinstance(code, jax.core.Tracer):
+        return result != RESULTS.successful
+    return int(code) != int(RESULTS.successful._value)
+
+
+_Solution = TypeVar("_Solution")
+
+
+def throw_on_failure(solution: _Solution, describe: Callable[[str], str]) -> _Solution:
+    """``solution`` (with ``result`` and ``q``), or its failure raised.
+
+    Concrete: a failed solve raises ``RuntimeError(describe(message))`` with the
+    result's message. Traced (inside an outer jit, vmap or grad): ``q`` carries an
+    equinox runtime error that fires when the code is not successful.
+    """
+    bad = failed(solution.result)
+    if isinstance(bad, jax.core.Tracer):
+        q = solution.result.error_if(solution.q, bad)
+        return eqx.tree_at(lambda s: s.q, solution, q)
+    if bad:
+        message = RESULTS._index_to_message[int(solution.result._value)]
+        raise RuntimeError(describe(message))
+    return solution

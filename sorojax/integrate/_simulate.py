@@ -31,7 +31,7 @@ from jaxtyping import Array, ArrayLike
 
 from .._jit import _bound_arguments, _top_level, in_tiers, jit
 from .._recompile import note_function, note_hooks
-from .._results import RESULTS
+from .._results import RESULTS, throw_on_failure
 from ..dynamics._eom import (
     GeneralizedForce,
     InputFunction,
@@ -542,19 +542,16 @@ def simulate(
             )
     if not throw:
         return traj
-    failed = traj.result != RESULTS.successful
-    if isinstance(failed, jax.core.Tracer):
-        return eqx.tree_at(lambda s: s.q, traj, traj.result.error_if(traj.q, failed))
-    if bool(failed):
-        message = RESULTS._index_to_message[int(traj.result._value)]
-        raise RuntimeError(
+    return throw_on_failure(
+        traj,
+        lambda message: (
             f"simulate failed: {message} After {int(traj.num_steps)} steps "
             f"({int(traj.num_rejected_steps)} rejected). For a stiff model use an "
             "implicit solver ('kvaerno5', 'kvaerno3', 'implicit_euler'); otherwise "
             "raise max_steps, loosen rtol/atol, or pass throw=False to inspect the "
             "trajectory up to the failure."
-        )
-    return traj
+        ),
+    )
 
 
 class _Plan(NamedTuple):

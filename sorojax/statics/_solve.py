@@ -35,7 +35,7 @@ from jaxtyping import Array, ArrayLike
 
 from .._jit import _bound_arguments, _top_level, jit
 from .._recompile import note_hooks
-from .._results import RESULTS, StaticsSolution
+from .._results import RESULTS, StaticsSolution, failed, throw_on_failure
 from ..dynamics._actuation import actuation_loads
 from ..dynamics._constraints import (
     closure_errors_and_wrenches,
@@ -646,15 +646,9 @@ def solve_statics(
         max_steps, rtol, atol,
     )  # fmt: skip
     sol = _solve_statics(*args, **kwargs)
-    code = sol.result._value
-    traced = isinstance(code, jax.core.Tracer)
-    # (concrete: compared on the host; != on the arrays compiles a program)
-    failed = (
-        sol.result != RESULTS.successful
-        if traced
-        else int(code) != int(RESULTS.successful._value)
-    )
-    if warn_unstable and not traced and not bool(failed) and not bool(sol.stable):
+    bad = failed(sol.result)
+    traced = isinstance(bad, jax.core.Tracer)
+    if warn_unstable and not traced and not bad and not bool(sol.stable):
         warnings.warn(
             f"solve_statics converged to an UNSTABLE equilibrium: the tangent "
             f"stiffness on the constraint manifold has {int(sol.n_negative)} negative "
@@ -667,17 +661,15 @@ def solve_statics(
         )
     if not throw:
         return sol
-    if traced:  # inside an outer jit / vmap / grad
-        return eqx.tree_at(lambda s: s.q, sol, sol.result.error_if(sol.q, failed))
-    if bool(failed):
-        message = RESULTS._index_to_message[int(sol.result._value)]
-        raise RuntimeError(
+    return throw_on_failure(
+        sol,
+        lambda message: (
             f"solve_statics did not converge: {message} Residual "
             f"{float(sol.residual_norm):.3e} after {int(sol.num_steps)} iterations. "
             "Try more max_steps, more load steps (load_steps=, load_increment=), a "
             "better q0, or throw=False to inspect the returned solution."
-        )
-    return sol
+        ),
+    )
 
 
 def _core_arguments(
