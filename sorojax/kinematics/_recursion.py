@@ -247,11 +247,13 @@ def _gather(x, idx, fill, extra: int):
     return jnp.concatenate([x, pad])[idx]
 
 
-def _prefix_poses(R, p):
+def _prefix_poses(R, p, sequential: bool = False):
     """Poses ``G_a = E_0 ... E_{a-1}`` relative to each chain's first point.
 
     ``R, p``: ``(n_chains, m, ...)``; returns ``(R_G, p_G)`` of shape
-    ``(n_chains, m + 1, ...)`` (``G_0 = I``), by a log-depth associative scan.
+    ``(n_chains, m + 1, ...)`` (``G_0 = I``), by a log-depth associative scan, or
+    with ``sequential`` by a ``lax.scan`` along the chains (one composition in the
+    program instead of one per level).
     """
 
     def compose(a, b):
@@ -259,7 +261,19 @@ def _prefix_poses(R, p):
         Rb, pb = b
         return Ra @ Rb, pa + jnp.einsum("...ab,...b->...a", Ra, pb)
 
-    RG, pG = lax.associative_scan(compose, (R, p), axis=1)
+    if sequential:
+
+        def step(G, E):
+            G = compose(G, E)
+            return G, G
+
+        first = (R[:, 0], p[:, 0])
+        rest = (jnp.moveaxis(R[:, 1:], 1, 0), jnp.moveaxis(p[:, 1:], 1, 0))
+        _, (RG, pG) = lax.scan(step, first, rest)
+        RG = jnp.concatenate([R[:, :1], jnp.moveaxis(RG, 0, 1)], axis=1)
+        pG = jnp.concatenate([p[:, :1], jnp.moveaxis(pG, 0, 1)], axis=1)
+    else:
+        RG, pG = lax.associative_scan(compose, (R, p), axis=1)
     eye = jnp.broadcast_to(jnp.eye(3, dtype=R.dtype), R[:, :1].shape)
     return (
         jnp.concatenate([eye, RG], axis=1),
@@ -323,7 +337,12 @@ def chain_terms(
     Rf, pf = _fixed_transforms(data)
     R = _gather(jnp.concatenate([k.R, Rf]), lay.idx_Rp, eye3, 1)
     p = _gather(jnp.concatenate([k.p, pf]), lay.idx_Rp, 0.0, 1)
-    RG, pG = _prefix_poses(R, p)
+    # Poses only (statics, kinematics queries): one composition in a loop compiles
+    # faster than the scan's levels (statics of a 30-DoF rod: 2.99 -> 2.62 s, warm
+    # 11.8 -> 9.6 ms); the rates pass (dynamics) keeps the log-depth scan, which ran
+    # 21% faster there.
+    pose_only = dOmegaV is None and k.Od is None
+    RG, pG = _prefix_poses(R, p, sequential=pose_only)
     Ginv = _Ad_inv(RG, pG)
     if dOmegaV is None and k.Od is None:
         return ChainTerms(RG, pG, Ginv, None)
