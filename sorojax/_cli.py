@@ -93,9 +93,31 @@ def _prepare(output: bool, box: dict) -> None:
         from . import viz  # noqa: F401
 
 
+# PNG text chunk (keyword "Source") marking a figure the demo wrote: the demo
+# replaces its own figure when run again, never another file of the same name.
+_DEMO_MARK = "sorojax demo"
+
+
+def _written_by_demo(path: pathlib.Path) -> bool:
+    """Whether the file at ``path`` is a PNG that ``sorojax demo`` wrote."""
+    with open(path, "rb") as f:
+        return b"Source\x00" + _DEMO_MARK.encode() in f.read()
+
+
+def _check_output(output: str, overwrite: bool) -> None:
+    """Refuse (before any computation) to replace a file the demo did not write."""
+    path = pathlib.Path(output)
+    if output and path.exists() and not overwrite and not _written_by_demo(path):
+        raise SystemExit(
+            f"sorojax demo: {path} exists and was not written by sorojax demo; pass "
+            "--overwrite to replace it, or -o to write the figure elsewhere."
+        )
+
+
 def _demo(args) -> int:
     import threading
 
+    _check_output(args.output, args.overwrite)
     import jax
 
     jax.config.update("jax_enable_x64", True)  # before any array is made
@@ -163,7 +185,7 @@ def _demo(args) -> int:
 
         fig, ax = plot_configuration(linkage, q, poses=g)
         ax.set_title("sorojax demo: static equilibrium")
-        fig.savefig(args.output, dpi=120)
+        fig.savefig(args.output, dpi=120, metadata={"Source": _DEMO_MARK})
         print(f"  figure written to {args.output}")
     return 0 if ok else 1
 
@@ -179,6 +201,11 @@ def main(argv=None) -> int:
     )
     demo.add_argument(
         "-o", "--output", default="sorojax-demo.png", help="PNG to write ('' for none)"
+    )
+    demo.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the output file even if sorojax demo did not write it",
     )
     demo.add_argument(
         "--optimised",

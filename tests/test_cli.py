@@ -24,6 +24,29 @@ def test_demo_runs_and_writes_png(tmp_path, capsys):
     assert pose[0] == pose[1], "the optimisation level changed the printed solution"
 
 
+def test_demo_replaces_only_its_own_figure(tmp_path, capsys):
+    """A file of the output's name that the demo did not write is refused before
+    any computation (and kept byte for byte); ``--overwrite`` replaces it; the
+    demo's own figure is marked and replaced when the demo runs again (README's
+    first command can be run twice)."""
+    import pytest
+
+    from sorojax._cli import _written_by_demo
+
+    out = tmp_path / "figure.png"
+    out.write_bytes(b"a user's file")
+    with pytest.raises(SystemExit, match="was not written by sorojax demo"):
+        main(["demo", "-o", str(out)])
+    assert out.read_bytes() == b"a user's file"
+    assert not _written_by_demo(out)
+    assert main(["demo", "-o", str(out), "--overwrite"]) == 0
+    assert _written_by_demo(out) and out.stat().st_size > 10_000
+    with open(out, "ab") as f:  # still the demo's figure (marked): replaced
+        f.write(b"TRAILER")
+    assert main(["demo", "-o", str(out)]) == 0, capsys.readouterr().out
+    assert _written_by_demo(out) and not out.read_bytes().endswith(b"TRAILER")
+
+
 def test_exported_demo_program_matches_the_code(tmp_path):
     """The demo's program exported ahead of time (``sorojax/data``) computes what
     the code as it is computes: the same result code and iterations, q and every
