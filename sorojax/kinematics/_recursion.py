@@ -344,7 +344,7 @@ def chain_terms(
     pose_only = dOmegaV is None and k.Od is None
     RG, pG = _prefix_poses(R, p, sequential=pose_only)
     Ginv = _Ad_inv(RG, pG)
-    if dOmegaV is None and k.Od is None:
+    if pose_only:
         return ChainTerms(RG, pG, Ginv, None)
     AdG = _Ad(RG[:, :-1], pG[:, :-1])
     extra = 3 * n_links + 1
