@@ -179,8 +179,12 @@ def main(argv=None):
     print(f"arm: {arm.n_dof} DoF, {arm.n_inputs} cables {CABLE_NAMES}")
     # The PD dynamics' programs compile in a worker thread while the statics run:
     # the hook's target and feedforward are arrays of the model, so placeholders of
-    # the same shapes give the same programs as the real ones computed below.
+    # the same shapes give the same programs as the real ones computed below. The
+    # statics' program is traced and lowered first: its lowering runs one small
+    # eager compile (lineax's result code), which waited 0.6-0.9 s when the
+    # integration's compile was already running in the worker.
     placeholder = pd_hook(arm.tip_point(1), np.zeros(3), np.zeros(arm.n_inputs))
+    sj.prepare(sj.solve_statics, arm, u=np.zeros(arm.n_inputs))
     sj.prepare(
         sj.simulate,
         cable_manipulator(order=args.order, eta=ETA, actuator_strength=placeholder),

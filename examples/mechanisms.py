@@ -163,6 +163,11 @@ def main(argv=None):
         # The integration's programs (one for both mechanisms) compile in a worker
         # thread while the statics run: the same arguments as the later call.
         first = names[0]
+        # The statics' program first (traced and lowered here, compiled in the
+        # worker): its lowering runs one small eager compile, which waits while a
+        # compile already runs in the worker.
+        q_start = MECHANISMS[first][1](0.0) + 0.02
+        sj.prepare(sj.solve_statics, linkages[first], q_start, u=np.array([0.0]))
         call, kwargs = driven_arguments(
             linkages[first], MECHANISMS[first][1], args.omega, args.t1, args.rtol,
             args.n_save,
