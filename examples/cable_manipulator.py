@@ -30,9 +30,11 @@ The hook is an ``equinox.Partial`` of a module-level law whose target and
 feedforward are arrays, so they are arrays of the model: a new target reuses the
 compiled dynamics. The script uses that to compile the dynamics ahead
 (``sorojax.prepare`` with placeholder arrays of the same shapes, in a worker thread
-while the statics run), and it runs the inverse statics' arithmetic on the host
-(NumPy) so that no eager JAX operation compiles between the solves (first runs
-in ``examples/README.md``, stop 36; the printed results are unchanged). The
+while the statics run; the statics' program is prepared just before, so that its
+lowering does not wait behind that compile), and it runs the inverse statics'
+arithmetic on the host (NumPy) so that no eager JAX operation compiles between the
+solves (first runs in ``examples/README.md``, stops 36-37; the printed results are
+unchanged). The
 integration itself (4684 Tsit5 steps, stability-bound by the damped fast modes)
 takes ~1.5 s warm.
 
