@@ -33,19 +33,21 @@ if os.environ.get("SOROJAX_TEST_XLA_OPT", "0") != "default":
 # references) get them too: set as flags, on the jaxlib line where the options are
 # verified (an unknown XLA flag is fatal). tests/test_jit.py compiles with XLA's
 # defaults explicitly to compare. (A gradient check through simulate: 16.5 -> 12.3 s.)
-# Also sorojax._jit.RUNTIME_FLAGS (what sorojax.set_runtime_flags adds in scripts).
 if importlib.metadata.version("jaxlib").startswith("0.10."):
     os.environ["XLA_FLAGS"] = " ".join(
         [
             os.environ.get("XLA_FLAGS", ""),
             "--xla_cpu_use_fusion_emitters=false",
             "--xla_cpu_multi_thread_eigen=false",
-            "--xla_cpu_enable_concurrency_optimized_scheduler=false",
         ]
     ).strip()
+# And sorojax's runtime flags, as the examples set them (before JAX's backend starts).
+import sorojax  # noqa: E402
+
+sorojax.set_runtime_flags()
 
 import jax  # noqa: E402
-import pytest
+import pytest  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_dtype_promotion", "strict")
