@@ -128,15 +128,20 @@ def main(argv=None):
     if traj.result != sj.RESULTS.successful:
         raise RuntimeError(f"the dynamics failed: {traj.result}")
     err = np.asarray(closure)
+    # host copies for the printout and the figure (indexing JAX arrays runs eager
+    # operations, each compiled on its first use)
+    ts, qs = np.asarray(traj.t), np.asarray(traj.q)
     print(
         f"dynamics over {args.t1:g} s, solver {traj.solver}: {int(traj.num_steps)} "
         f"steps ({int(traj.num_rejected_steps)} rejected), {wall:.1f} s incl. "
         f"compile; largest closure error {np.abs(err).max():.1e}"
     )
-    tip = np.asarray(sj.tip_pose(linkage, traj.q[-1], 5))[:3, 3]
+    tip = np.asarray(sj.tip_pose(linkage, qs[-1], 5))[:3, 3]
+    # the efforts' program compiles in a worker thread: waited for last
+    efforts = np.asarray(traj.efforts)
     print(
-        f"  at t1: angle {float(traj.q[-1, 0]):.4f} rad, revolute torque "
-        f"{float(traj.efforts[-1, 0]):.4f} N m, tip of link 5 "
+        f"  at t1: angle {qs[-1, 0]:.4f} rad, revolute torque "
+        f"{efforts[-1, 0]:.4f} N m, tip of link 5 "
         f"{np.array2string(tip, precision=4)} m"
     )
 
@@ -149,14 +154,14 @@ def main(argv=None):
     plot_cables(linkage, sol.q, ax, color="r")
     ax.set_title(f"statics: angle -pi/4, {TENSION:g} N (reference grey)")
     ax = fig.add_subplot(1, 3, 2, projection="3d")
-    picks = np.linspace(0, len(traj.t) - 1, 5).astype(int)
+    picks = np.linspace(0, len(ts) - 1, 5).astype(int)
     shades = plt.cm.viridis(np.linspace(0, 0.9, len(picks)))
     for k, c in zip(picks, shades, strict=True):
-        plot_configuration(linkage, traj.q[k], ax=ax, color=c, n_circle=8)
-    ax.set_title("dynamics: t = " + ", ".join(f"{traj.t[k]:.2f}" for k in picks))
+        plot_configuration(linkage, qs[k], ax=ax, color=c, n_circle=8)
+    ax.set_title("dynamics: t = " + ", ".join(f"{ts[k]:.2f}" for k in picks))
     ax = fig.add_subplot(1, 3, 3)
-    ax.plot(traj.t, traj.efforts[:, 0], label="revolute torque [N m]")
-    ax.plot(traj.t, np.asarray(traj.u)[:, 1] / 10, label="tension / 10 [N]")
+    ax.plot(ts, efforts[:, 0], label="revolute torque [N m]")
+    ax.plot(ts, np.asarray(traj.u)[:, 1] / 10, label="tension / 10 [N]")
     ax.set_xlabel("t [s]")
     ax.set_title("dynamics: inputs and solved torque")
     ax.legend()
