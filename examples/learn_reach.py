@@ -58,17 +58,22 @@ def make_env(order: int = 0) -> sj.Environment:
     return sj.Environment(arm, period=PERIOD, dt=PERIOD)
 
 
-def targets_of(env: sj.Environment, key, n: int):
-    """``n`` reachable targets: equilibrium tips of random tensions (and the tensions).
-
-    Two random cables of four pull, so targets spread around the hanging tip.
-    """
+def random_tensions(key, n: int):
+    """``n`` random tension sets ``(n, 4)`` [N]: two random cables of four pull."""
     k1, k2 = jax.random.split(key)
     T = T_MAX * jax.random.uniform(k1, (n, 4))
     keep = jax.vmap(lambda k: jax.random.permutation(k, jnp.array([1.0, 1, 0, 0])))(
         jax.random.split(k2, n)
     )
-    T = T * keep
+    return T * keep
+
+
+def targets_of(env: sj.Environment, T):
+    """Reachable targets ``(n, 3)`` [m]: the equilibrium tips under tensions ``T``.
+
+    One vmapped statics program for every set (the training pool and the held-out
+    targets in one call: one trace and compile, not two).
+    """
 
     def tip(T_i):
         sol = sj.solve_statics(env.linkage, u=T_i, throw=False)
@@ -77,7 +82,7 @@ def targets_of(env: sj.Environment, key, n: int):
     tips, results = sj.jit(jax.vmap(tip))(T)  # run once: -O0 tier
     if np.any(np.asarray(results) != 0):
         raise RuntimeError("a target's statics solve failed")
-    return tips, T
+    return tips
 
 
 class Policy(eqx.Module):
@@ -196,8 +201,11 @@ def main(argv=None):
     key = jax.random.key(args.seed)
     k_pol, k_train, k_test = jax.random.split(key, 3)
     # a pool of training targets, resampled per step (one statics batch)
-    pool, _ = targets_of(env, k_train, 16 * args.batch)
-    test_targets, test_T = targets_of(env, k_test, args.held_out)
+    pool_T = random_tensions(k_train, 16 * args.batch)
+    test_T = random_tensions(k_test, args.held_out)
+    tips = np.asarray(targets_of(env, np.concatenate([pool_T, test_T])))
+    # split on the host (a slice of a JAX array would compile an operation each)
+    pool, test_targets = (jnp.asarray(a) for a in np.split(tips, [len(pool_T)]))
     policy = Policy(env.linkage.n_dof, k_pol)
     params, static = eqx.partition(policy, eqx.is_array)
 
