@@ -99,9 +99,24 @@ _DEMO_MARK = "sorojax demo"
 
 
 def _written_by_demo(path: pathlib.Path) -> bool:
-    """Whether the file at ``path`` is a PNG that ``sorojax demo`` wrote."""
+    """Whether the file at ``path`` is a PNG that ``sorojax demo`` wrote.
+
+    Reads the PNG's chunk headers up to the image data (text chunks come before it),
+    not the whole file: any other file is recognised from its first bytes.
+    """
+    mark = b"Source\x00" + _DEMO_MARK.encode()
     with open(path, "rb") as f:
-        return b"Source\x00" + _DEMO_MARK.encode() in f.read()
+        if f.read(8) != b"\x89PNG\r\n\x1a\n":
+            return False
+        while len(header := f.read(8)) == 8:
+            size, kind = int.from_bytes(header[:4], "big"), header[4:]
+            if kind in (b"IDAT", b"IEND"):
+                return False
+            data = f.read(size)
+            if kind == b"tEXt" and data == mark:
+                return True
+            f.seek(4, os.SEEK_CUR)  # the chunk's CRC
+    return False
 
 
 def _check_output(output: str, overwrite: bool) -> None:
