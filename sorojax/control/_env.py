@@ -273,8 +273,7 @@ class Environment(eqx.Module):
         _, y0, _ = _initial_state(lk, state.q, state.qd, t0, t1, u_fn, u_const, None)
         data = precompute(lk)
         y0 = consistent_start(lk, data, t0, y0, u_fn, u_const)
-        term = _vector_field(lk, None, u_fn)
-        args = (data, u_const)
+        term, args = _vector_field(lk, data, u_const, u_fn, None)
         dt = jnp.asarray(self.dt, dtype)
         solver_state = solver.init(term, t0, t0 + dt, y0, args)
 

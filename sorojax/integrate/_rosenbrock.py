@@ -247,10 +247,15 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
         A mechanical step evaluates its own start; any other term carries the
         first-same-as-last vector field and Jacobian.
         """
-        if jnp.ndim(y0) != 1:
+        if not eqx.is_array(y0) or y0.ndim != 1:
+            got = (
+                f"shape {y0.shape}"
+                if eqx.is_array(y0)
+                else f"a pytree {jax.tree_util.tree_structure(y0)}"
+            )
             raise ValueError(
-                f"RosenbrockW needs a one-dimensional array state; got shape "
-                f"{jnp.shape(y0)} (flatten the state, e.g. with jax.flatten_util)."
+                f"RosenbrockW needs a one-dimensional array state; got {got} "
+                "(flatten the state, e.g. with jax.flatten_util.ravel_pytree)."
             )
         if _mechanical_term(terms) is not None:
             return None  # the mechanical step evaluates its own start

@@ -19,7 +19,7 @@ import concurrent.futures
 import contextlib
 import functools
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import diffrax
 import equinox as eqx
@@ -291,15 +291,42 @@ def consistent_start(linkage: Linkage, data, t0, y0, u_fn, u_const) -> Array:
     return jnp.concatenate([y0[:n], qd0])
 
 
-def _vector_field(linkage: Linkage, generalized_force, u_fn) -> MechanicalTerm:
-    """The dynamics as a diffrax term: ``(qd, qdd)`` and the stiff part (M, K, D)."""
+class _Field(eqx.Module):
+    """The dynamics' vector field: ``(qd, qdd)`` and the stiff part (M, K, D).
 
-    def field(t, y, args):
-        data, u_const = args
+    It closes over no array: the arrays the dynamics read (the linkage's, its
+    derived data, the constant inputs, and those of ``u`` and
+    ``generalized_force`` functions) come in ``args`` as a flat list
+    (:func:`_vector_field`), and the rest of their pytrees (structure, functions,
+    Python values) is static here. diffrax's ``BacksolveAdjoint`` differentiates
+    through ``args`` only: a traced array that the field closed over would leak out
+    of its backward solve, and it cannot take empty tuples (a linkage without
+    cables) inside ``args``.
+    """
+
+    treedef: Any = eqx.field(static=True)
+    static: tuple = eqx.field(static=True)  # the non-array leaves, None at arrays
+
+    def __call__(self, t, y, args):
+        leaves = iter(args)
+        parts = [next(leaves) if x is None else x for x in self.static]
+        linkage, data, u_const, u_fn, generalized_force = jax.tree_util.tree_unflatten(
+            self.treedef, parts
+        )
         ydot, M, _ = _rates(linkage, data, t, y, u_fn, u_const, generalized_force)
         return ydot, (M, data.K, data.D)
 
-    return MechanicalTerm(field)
+
+def _vector_field(
+    linkage: Linkage, data, u_const, u_fn, generalized_force
+) -> tuple[MechanicalTerm, list]:
+    """``(term, args)``: the dynamics as a diffrax term and its ``args``."""
+    leaves, treedef = jax.tree_util.tree_flatten(
+        (linkage, data, u_const, u_fn, generalized_force)
+    )
+    arrays = [x for x in leaves if eqx.is_array(x)]
+    static = tuple(None if eqx.is_array(x) else x for x in leaves)
+    return MechanicalTerm(_Field(treedef, static)), arrays
 
 
 def _result_code(sol: diffrax.Solution) -> RESULTS:
@@ -373,14 +400,15 @@ def _simulate(
         controller = eqx.tree_at(
             lambda c: c.norm, controller, _own_rms_norm(controller.norm, data.locked)
         )
+    term, field_args = _vector_field(linkage, data, u_const, u_fn, generalized_force)
     sol = diffrax.diffeqsolve(
-        _vector_field(linkage, generalized_force, u_fn),
+        term,
         solver,
         t0,
         t1,
         dt0,
         y0,
-        args=(data, u_const),
+        args=field_args,
         saveat=diffrax.SaveAt(ts=ts),
         stepsize_controller=controller,
         max_steps=max_steps,
@@ -503,7 +531,15 @@ def simulate(
             ``diffrax.RecursiveCheckpointAdjoint()``: exact reverse-mode gradients;
             for forward mode, ``jax.jvp`` / ``jax.jacfwd`` through ``simulate``,
             pass ``diffrax.ForwardMode()``, as examples/system_identification.py
-            does).
+            does). ``diffrax.BacksolveAdjoint`` (the continuous adjoint, memory
+            independent of the number of steps) needs a backward solver that takes
+            pytree states: for a non-stiff model
+            ``BacksolveAdjoint(solver=diffrax.Tsit5())``; with ``"ros34pw2"`` as
+            the backward solver (the default solver's usual pick) it is refused.
+            For a stiff, damped rod it is no use: on the damped free-fall rod the
+            backward Tsit5 solve gave a gradient of 1e19 (the exact one: -0.019)
+            and a Kvaerno5 one did not finish its first call within 10 minutes on
+            a 2-core CPU.
         throw: raise ``RuntimeError`` on failure (under an outer jit an equinox
             runtime error); use ``throw=False`` under ``vmap`` and read ``result``.
 
@@ -552,6 +588,26 @@ def simulate(
             "trajectory up to the failure."
         ),
     )
+
+
+def _check_adjoint(adjoint, solver) -> None:
+    """Refuse a backward solve that the Rosenbrock-W solver cannot take."""
+    if not isinstance(adjoint, diffrax.BacksolveAdjoint):
+        return
+    backward = adjoint.kwargs.get("solver", solver)
+    if isinstance(backward, RosenbrockW):
+        raise ValueError(
+            "adjoint = diffrax.BacksolveAdjoint() integrates the state together with "
+            "its adjoints backwards in time (a pytree state), and its backward solver "
+            f"would be {type(backward).__name__} ('ros34pw2', which 'auto' picks for "
+            "damped rods), which takes one-dimensional array states only. For a "
+            "non-stiff model give the backward pass an explicit solver of its own, "
+            "e.g. diffrax.BacksolveAdjoint(solver=diffrax.Tsit5()); otherwise keep "
+            "the default adjoint (RecursiveCheckpointAdjoint: the exact gradient of "
+            "the computed trajectory, the one for stiff, damped models; "
+            "BacksolveAdjoint's is the continuous adjoint's, accurate to the "
+            "backward solve's tolerance)."
+        )
 
 
 class _Plan(NamedTuple):
@@ -617,6 +673,7 @@ def _plan(
     dt0_ = None if dt0 is None else jnp.asarray(dt0, dtype=dtype)
     meter = diffrax.TqdmProgressMeter() if progress else diffrax.NoProgressMeter()
     adjoint = diffrax.RecursiveCheckpointAdjoint() if adjoint is None else adjoint
+    _check_adjoint(adjoint, solver_)
     # In the compile tiers the efforts at the save points are a program of their
     # own, compiled at -O0 (see _saved_inputs); compiled at the default level they
     # cost about as much inside the integration's program as apart, and inside a
