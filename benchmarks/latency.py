@@ -18,7 +18,10 @@ Targets (issue 19's list):
 * ``hybrid_statics`` / ``hybrid_dynamics``: the manual's 17-DoF hybrid closed chain
   (statics at -pi/4 and 50 N; 1 s with the angle pi t / 2);
 * ``grad_freefall1``: ``jax.grad`` of the tip height after 1 s of the damped
-  free-fall rod with respect to the scale of its initial strain.
+  free-fall rod with respect to the scale of its initial strain;
+* ``fwdgrad_freefall1``: the same derivative in forward mode (``jax.jacfwd``
+  through ``simulate(..., adjoint=diffrax.ForwardMode())``: one tangent; not one
+  of issue 19's targets, the way README recommends for a few parameters).
 
 Run::
 
@@ -46,6 +49,7 @@ TARGETS = (
     "hybrid_statics",
     "hybrid_dynamics",
     "grad_freefall1",
+    "fwdgrad_freefall1",
 )
 RESULTS_DIR = pathlib.Path(__file__).parent / "results"
 
@@ -71,7 +75,7 @@ def build(name):
             return sol.q, sol.result._value
 
         return f, (jnp.asarray(1.0),), 30
-    if name in ("freefall5", "grad_freefall1"):
+    if name in ("freefall5", "grad_freefall1", "fwdgrad_freefall1"):
         rod = scenes.free_fall_rod(order=3, eta=1e4)
         q0 = scenes.free_fall_q0(rod)
         if name == "freefall5":
@@ -82,13 +86,18 @@ def build(name):
 
             return f, (jnp.asarray(1.0),), rod.n_dof
 
-        def tip_z(s):
-            tr = sj.simulate(rod, 1.0, s * q0, n_save=2, throw=False)
-            return sj.tip_pose(rod, tr.q[-1])[2, 3]
-
+        import diffrax
         import jax
 
-        return jax.grad(tip_z), (jnp.asarray(1.0),), rod.n_dof
+        forward_mode = name == "fwdgrad_freefall1"
+        adjoint = diffrax.ForwardMode() if forward_mode else None
+
+        def tip_z(s):
+            tr = sj.simulate(rod, 1.0, s * q0, n_save=2, throw=False, adjoint=adjoint)
+            return sj.tip_pose(rod, tr.q[-1])[2, 3]
+
+        derivative = jax.jacfwd(tip_z) if forward_mode else jax.grad(tip_z)
+        return derivative, (jnp.asarray(1.0),), rod.n_dof
     if name == "cablearm16":
         arm = cable_manipulator(order=3, eta=3e4)
 
