@@ -533,9 +533,10 @@ def simulate(
             pass ``diffrax.ForwardMode()``, as examples/system_identification.py
             does: the same exact derivative, and for a few parameters the faster
             one to compile and often to run: d(tip)/d(E, eta) over 1 s of the
-            damped free-fall rod compiles in 5.2 s against 12.6 s, 105 against
-            104 ms warm, ``benchmarks/gradients.py``). ``diffrax.BacksolveAdjoint``
-            (the continuous adjoint, memory independent of the number of steps)
+            damped free-fall rod compiles in 5.2-6.1 s against 12.6-14.9 s, 81-105
+            against 100-104 ms warm, ``benchmarks/gradients.py``).
+            ``diffrax.BacksolveAdjoint`` (the continuous adjoint, memory
+            independent of the number of steps)
             needs a backward solver that takes pytree states: for a non-stiff model
             ``BacksolveAdjoint(solver=diffrax.Tsit5())``; with ``"ros34pw2"`` as
             the backward solver (the default solver's usual pick) it is refused.
