@@ -536,8 +536,8 @@ def simulate(
             damped free-fall rod compiles in 5.2-6.1 s against 12.6-14.9 s, 81-105
             against 100-104 ms warm, ``benchmarks/gradients.py``).
             ``diffrax.BacksolveAdjoint`` (the continuous adjoint, memory
-            independent of the number of steps)
-            needs a backward solver that takes pytree states: for a non-stiff model
+            independent of the number of steps) needs a backward solver that takes
+            pytree states: for a non-stiff model
             ``BacksolveAdjoint(solver=diffrax.Tsit5())``; with ``"ros34pw2"`` as
             the backward solver (the default solver's usual pick) it is refused.
             For a stiff, damped rod it is no use: on the damped free-fall rod the
