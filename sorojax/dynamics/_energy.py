@@ -17,9 +17,10 @@ from jaxtyping import Array, ArrayLike, Float
 
 from .._jit import jit
 from ..kinematics._api import _as_q
-from ..kinematics._recursion import poses_and_jacobians
+from ..kinematics._recursion import poses, poses_and_jacobians
 from ..model._linkage import Linkage
 from ..model._precompute import LinkageData, precompute
+from ._contact import contact_energy_from_poses
 from ._mass import _mass_from_J
 from ._wrench_recursion import poses_with_records
 
@@ -60,7 +61,10 @@ def elastic_energy(linkage: Linkage, q: ArrayLike) -> Float[Array, ""]:
 
 @jit
 def total_energy(linkage: Linkage, q: ArrayLike, qd: ArrayLike) -> Float[Array, ""]:
-    """Kinetic + gravitational + elastic energy [J]."""
+    """Kinetic + gravitational + elastic energy [J], with contact's elastic energy."""
     q, qd = _as_q(linkage, q), _as_q(linkage, qd, "qd")
     data = precompute(linkage)
-    return _kinetic(data, q, qd) + _gravitational(data, q) + _elastic(data, q)
+    E = _kinetic(data, q, qd) + _gravitational(data, q) + _elastic(data, q)
+    if linkage.contact is not None:
+        E = E + contact_energy_from_poses(linkage, poses(data, q))
+    return E

@@ -30,6 +30,7 @@ from ._actuation import actuation_loads, effective_inputs
 from ._constraints import (
     constraint_terms_from_kinematics,
 )
+from ._contact import contact_wrenches
 from ._external import custom_wrenches, external_wrenches
 from ._mass import _gyroscopic, _mass_from_J, _weighted_inertia
 
@@ -91,6 +92,8 @@ def mass_and_force(
         Ma = data.point_weight[:, None, None] * linkage.added_mass
         W = W - jnp.einsum("pab,pb->pa", Ma, etadot_v)
         M = M + jnp.einsum("pai,pab,pbj->ij", J, Ma, J)
+    if linkage.contact is not None:
+        W = W + contact_wrenches(linkage, t, g, eta)
     if linkage.custom_wrench is not None:
         W = W + custom_wrenches(linkage, data, t, q, qd, kin_fn())
     if u is not None:

@@ -14,6 +14,7 @@ from jaxtyping import Array, Float
 
 from ..model._linkage import Linkage
 from ..model._precompute import LinkageData
+from ._contact import contact_wrenches
 from ._wrench_recursion import force_from_wrenches, poses_with_records
 
 
@@ -72,6 +73,8 @@ def external_force(linkage: Linkage, data: LinkageData, t, q, qd, kin) -> Array:
         ``(n_dof,)`` generalised force.
     """
     W = external_wrenches(linkage, data, t, kin.g)
+    if linkage.contact is not None:
+        W = W + contact_wrenches(linkage, t, kin.g, kin.eta)
     if linkage.custom_wrench is not None:
         W = W + custom_wrenches(linkage, data, t, q, qd, kin)
     return jnp.einsum("pai,pa->i", kin.J, W)
@@ -83,4 +86,7 @@ def external_force_recursive(linkage: Linkage, data: LinkageData, t, q) -> Array
     Only for linkages without a custom hook (the hook may need the Jacobians).
     """
     g, records = poses_with_records(data, q)
-    return force_from_wrenches(data, records, external_wrenches(linkage, data, t, g))
+    W = external_wrenches(linkage, data, t, g)
+    if linkage.contact is not None:
+        W = W + contact_wrenches(linkage, t, g)
+    return force_from_wrenches(data, records, W)

@@ -28,6 +28,17 @@ from ._basis import (
     PaddedBasis as PaddedBasis,
 )
 from ._closure import ClosedLoopJoint as ClosedLoopJoint
+from ._contact import AbstractContactShape as AbstractContactShape
+from ._contact import AbstractObstacle as AbstractObstacle
+from ._contact import Box as Box
+from ._contact import Capsule as Capsule
+from ._contact import Contact as Contact
+from ._contact import ContactBox as ContactBox
+from ._contact import ContactCapsule as ContactCapsule
+from ._contact import ContactLaw as ContactLaw
+from ._contact import ContactSphere as ContactSphere
+from ._contact import Plane as Plane
+from ._contact import Sphere as Sphere
 from ._hook import Hook as Hook
 from ._joint import Joint as Joint
 from ._layout import Layout as Layout

@@ -17,6 +17,7 @@ from jaxtyping import Array, ArrayLike, Float
 from ._actuation import Cable, CableAnchor, CableSpan, JointActuator
 from ._checks import check_se3, check_shape, is_concrete
 from ._closure import ClosedLoopJoint
+from ._contact import Contact, resolve_contact
 from ._hook import Hook, as_hook
 from ._layout import Layout, build_layout
 from ._link import AbstractLink, RigidLink, SoftLink
@@ -68,6 +69,10 @@ class Linkage(eqx.Module):
             dynamics (smaller holds the constraint more tightly; default 0.01); an
             array, so a new value reuses compiled programs and ``jax.grad``
             reaches it.
+        contact: optional :class:`~sorojax.Contact`: obstacles, the contact law,
+            rigid links' contact shapes, rod-rod pairs and self-contact. Its
+            samples on soft links become significant points of the layout (exact
+            kinematics); their number is fixed here (see ``Contact.spacing``).
     """
 
     links: tuple[AbstractLink, ...]
@@ -82,6 +87,7 @@ class Linkage(eqx.Module):
     actuator_strength: Hook | None
     added_mass: Float[Array, "n_points 6 6"] | None
     baumgarte_time: Float[Array, ""]
+    contact: Contact | None
 
     def __init__(
         self,
@@ -97,6 +103,7 @@ class Linkage(eqx.Module):
         actuator_strength: Callable | None = None,
         added_mass: ArrayLike | None = None,
         baumgarte_time: float = 0.01,
+        contact: Contact | None = None,
     ):
         if isinstance(links, AbstractLink):
             links = (links,)
@@ -178,6 +185,7 @@ class Linkage(eqx.Module):
         # an array (a parameter: a new value reuses compiled programs)
         with jax.ensure_compile_time_eval():
             self.baumgarte_time = jnp.asarray(baumgarte_time, dtype=float)
+        self.contact = None if contact is None else resolve_contact(contact, links)
         if added_mass is not None:
             added_mass = jnp.asarray(added_mass, dtype=float)
             n_pts = build_layout(self.signature).n_points
@@ -197,6 +205,13 @@ class Linkage(eqx.Module):
                 for r in a.route:
                     if isinstance(r, CableAnchor) and r.division is not None:
                         extra.setdefault((r.link, r.division), []).append(r.X1)
+        contact = getattr(self, "contact", None)
+        if contact is not None:
+            for link, cells in contact.cells:
+                for k, n in enumerate(cells, start=1):
+                    extra.setdefault((link, k), []).extend(
+                        j / n for j in range(1, n)
+                    )
         sig = []
         for i, (link, parent) in enumerate(
             zip(self.links, self.parents, strict=True), 1

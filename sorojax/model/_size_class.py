@@ -64,6 +64,7 @@ def replace_divisions(
         custom_actuation=linkage.custom_actuation,
         actuator_strength=linkage.actuator_strength,
         baumgarte_time=linkage.baumgarte_time,
+        contact=linkage.contact,
     )
     out = Linkage(links, **kw)
     if linkage.added_mass is None:

@@ -42,6 +42,7 @@ from ..dynamics._constraints import (
     numerical_rank,
 )
 from ..dynamics._eom import as_inputs
+from ..dynamics._contact import contact_wrenches
 from ..dynamics._external import custom_wrenches, external_wrenches
 from ..dynamics._generalized import kinematics_from_data
 from ..dynamics._wrench_recursion import force_from_wrenches, poses_with_records
@@ -95,6 +96,8 @@ def _residual_and_closure(linkage: Linkage, data: LinkageData, q, t, lam, u, mu)
         g, records = poses_with_records(data, q)
         kin = None
     W = lam * external_wrenches(linkage, data, t, g)
+    if linkage.contact is not None:  # a reaction: never scaled by the load factor
+        W = W + contact_wrenches(linkage, t, g)
     if linkage.custom_wrench is not None:
         W = W + lam * custom_wrenches(linkage, data, t, q, qd, kin)
     Q = jnp.zeros_like(q)
@@ -232,6 +235,7 @@ def _newton(
     atol,
     n_mult=0,
     max_step=jnp.inf,
+    regularise=False,
 ):
     """Newton's method over load increments lambda = k / n, k = 1 .. n, one loop.
 
@@ -255,7 +259,8 @@ def _newton(
     zero instead makes that step ignore the loop forces, and from a buckled guess of
     a clamped-clamped rod it jumped to the straight, unstable equilibrium. No
     coordinate moves by more than ``max_step`` per iteration (the step is scaled
-    down, its direction kept).
+    down, its direction kept). With ``regularise`` (contact scenes) a singular
+    Jacobian takes a Levenberg-shifted step instead of failing.
 
     Returns ``(x, f, aux, (J, J_aux), steps, status)`` (``J_aux = daux/dx``), status
     0 converged, 1 out of steps, 2 non-finite values, 3 failed linear solve.
@@ -327,8 +332,22 @@ def _newton(
         # can leave the basin of the equilibrium near the guess (a slightly buckled
         # guess of a clamped-clamped rod diverged); near a root steps are far below.
         dx = sol.value
+        if regularise:
+            # A body that floats free of its obstacles has no stiffness in the
+            # directions contact will hold (a singular tangent): step along the
+            # load instead (Levenberg's shift, tiny against the stiffness), within
+            # the step cap, until contact makes the tangent regular.
+            bad = (sol.result != lx.RESULTS.successful) | ~jnp.all(jnp.isfinite(dx))
+            Jf = jnp.where(finite, J, 0.0)
+            shift = 1e-9 * jnp.maximum(jnp.max(jnp.abs(Jf)), 1.0)
+            dx_reg = jnp.linalg.solve(
+                Jf + shift * jnp.eye(Jf.shape[0], dtype=dtype), jnp.where(finite, f, 0.0)
+            )
+            dx = jnp.where(bad, dx_reg, dx)
         dx = dx / jnp.maximum(jnp.max(jnp.abs(dx[:n_eq]), initial=0.0) / max_step, 1.0)
-        solved = (sol.result == lx.RESULTS.successful) & jnp.all(jnp.isfinite(dx))
+        solved = (
+            (sol.result == lx.RESULTS.successful) | regularise
+        ) & jnp.all(jnp.isfinite(dx))
         dx_small = jnp.max(jnp.abs(dx) / (tol_a + tol_r * jnp.abs(x)), initial=0.0) <= 1
         f_small = jnp.max(jnp.abs(f), initial=0.0) <= tol_a
         # Final increment: converged when the residual here is within atol and so is
@@ -462,6 +481,7 @@ def _solve_statics(
             atol=atol,
             n_mult=n_c,
             max_step=load_increment,
+            regularise=linkage.contact is not None,
         )
         result = RESULTS.where(
             status == 0,

@@ -1,0 +1,432 @@
+"""Contact forces as body wrenches at the significant points, and their report.
+
+The contact law, obstacles and shapes are described in :mod:`sorojax.model._contact`.
+Each contact gives a force ``f`` (world frame) at a point ``x_c`` on the robot's
+surface; the body-frame wrench ``(a x f_b, f_b)`` with ``a`` the arm from the sample's
+centre-line point (so that friction exerts a moment) is added at that significant
+point and mapped to the coordinates with the other loads, by ``J^T`` or the backward
+wrench recursion. A rod-rod contact at the closest points of two segments is split
+between each segment's end points with the linear weights of its closest point
+(statically equivalent; the velocity of the contact point is interpolated with the
+same weights, so the map is power-consistent and damping and friction only dissipate).
+
+Everything is a pure function of the poses (and twists): ``jax.grad`` flows through
+it; the force law is continuously differentiable, so Newton's tangent and the
+gradients are continuous (they jump in their second derivative at touch-down).
+"""
+
+import math
+from typing import NamedTuple
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, ArrayLike, Float
+
+from .._jit import jit
+from ..kinematics._api import _as_q
+from ..model._contact import Contact, closest_on_segment, contact_links, soft_radius
+from ..model._linkage import Linkage
+from ..model._precompute import precompute
+
+
+def _safe_norm(x: Array) -> Array:
+    sq = jnp.sum(x * x, axis=-1)
+    pos = sq > 0
+    return jnp.where(pos, jnp.sqrt(jnp.where(pos, sq, 1.0)), 0.0)
+
+
+# ------------------------------------------------------------------ sample tables
+class Samples(NamedTuple):
+    """Contact samples: spheres at (or rigidly offset from) significant points."""
+
+    point: np.ndarray  # (n,) significant point index (static)
+    link: np.ndarray  # (n,) 1-based link number (static)
+    weight: Array  # (n,) length the sample stands for [m] (rods), 1 (rigid points)
+    radius: Array  # (n,) [m]
+    offset: Array  # (n, 3) centre in the point's body frame [m]
+
+
+class Segments(NamedTuple):
+    """Segments joining consecutive samples of one soft link (static indices)."""
+
+    start: np.ndarray  # (m,) index into the link's samples
+    end: np.ndarray  # (m,)
+    arc: np.ndarray  # (m,) arc length of the midpoint [m] (NaN if traced)
+
+
+def _division_samples(linkage: Linkage, contact: Contact, link_number: int):
+    """Per-division sample points of a soft link: (points, weights, radii, X1s)."""
+    layout = linkage.layout.links[link_number - 1]
+    link = linkage.links[link_number - 1]
+    cells = dict(contact.cells)[link_number]
+    out = []
+    for div, dl, n in zip(link.divisions, layout.divisions, cells, strict=True):
+        X1 = np.arange(n + 1) / n
+        idx = np.asarray([dl.first_point + int(np.argmin(np.abs(dl.X1 - x))) for x in X1])
+        w = np.full(n + 1, 1.0 / n)
+        w[0] = w[-1] = 0.5 / n
+        weight = div.length * jnp.asarray(w)
+        radius = jnp.stack([soft_radius(contact, link_number, div, float(x)) for x in X1])
+        out.append((idx, weight, radius.astype(weight.dtype), X1))
+    return out
+
+
+def obstacle_samples(linkage: Linkage) -> Samples:
+    """The samples checked against the obstacles, link by link."""
+    contact = linkage.contact
+    assert contact is not None
+    pts, links, ws, rs, offs = [], [], [], [], []
+    for i in contact_links(contact, linkage.links):
+        lay = linkage.layout.links[i - 1]
+        shape = contact.shape_of(i)
+        if lay.soft:
+            for idx, w, r, _ in _division_samples(linkage, contact, i):
+                pts.append(idx)
+                ws.append(w)
+                rs.append(r)
+                offs.append(jnp.zeros((len(idx), 3), w.dtype))
+                links.append(np.full(len(idx), i))
+        elif shape is not None:
+            o, r = shape.points()
+            pts.append(np.full(o.shape[0], lay.cm_point))
+            ws.append(jnp.ones(o.shape[0], o.dtype))
+            rs.append(r)
+            offs.append(o)
+            links.append(np.full(o.shape[0], i))
+    if not pts:
+        z = jnp.zeros((0,))
+        return Samples(np.zeros(0, int), np.zeros(0, int), z, z, jnp.zeros((0, 3)))
+    return Samples(
+        np.concatenate(pts),
+        np.concatenate(links),
+        jnp.concatenate(ws),
+        jnp.concatenate(rs),
+        jnp.concatenate(offs),
+    )
+
+
+def rod_samples(linkage: Linkage, link_number: int) -> tuple[Samples, Segments]:
+    """A soft link's samples and the segments between consecutive ones."""
+    contact = linkage.contact
+    assert contact is not None
+    parts = _division_samples(linkage, contact, link_number)
+    link = linkage.links[link_number - 1]
+    starts, ends, arcs = [], [], []
+    base, s0 = 0, 0.0
+    for (idx, _, _, X1), div in zip(parts, link.divisions, strict=True):
+        m = len(idx) - 1
+        starts.append(base + np.arange(m))
+        ends.append(base + np.arange(1, m + 1))
+        try:
+            L = float(div.length)
+        except (TypeError, jax.errors.ConcretizationTypeError):
+            L = math.nan
+        mid = 0.5 * (X1[:-1] + X1[1:])
+        arcs.append(s0 + L * mid)
+        s0 += L
+        base += len(idx)
+    samples = Samples(
+        np.concatenate([p[0] for p in parts]),
+        np.full(base, link_number),
+        jnp.concatenate([p[1] for p in parts]),
+        jnp.concatenate([p[2] for p in parts]),
+        jnp.zeros((base, 3)),
+    )
+    return samples, Segments(
+        np.concatenate(starts), np.concatenate(ends), np.concatenate(arcs)
+    )
+
+
+# -------------------------------------------------------------------- the report
+class ContactState(eqx.Module):
+    """Every candidate contact of a configuration (inactive ones have zero force).
+
+    Rows: first each obstacle against each sample (obstacle by obstacle, samples in
+    link order), then each rod-rod or self-contact segment pair.
+
+    Attributes:
+        point: (n, 3) contact point on the robot's surface (link A's for pairs)
+            [m, world].
+        normal: (n, 3) unit normal pointing into the robot (into link A) [world].
+        penetration: (n,) overlap [m] (negative: the gap).
+        normal_force: (n,) elastic plus damping normal force [N] (weighted: per
+            sample, the law per length times the sample's length).
+        force: (n, 3) total contact force on the robot (on link A) [N, world].
+        slip: (n, 3) tangential velocity of the robot's surface relative to the
+            obstacle (to link B) [m/s, world].
+        link_number: link number of each row (link A for pairs); static.
+        obstacle_index: obstacle index of each row (0-based), -1 for rod-rod
+            pairs; static.
+        energy: elastic contact energy [J].
+    """
+
+    point: Float[Array, "n 3"]
+    normal: Float[Array, "n 3"]
+    penetration: Float[Array, " n"]
+    normal_force: Float[Array, " n"]
+    force: Float[Array, "n 3"]
+    slip: Float[Array, "n 3"]
+    link_number: tuple[int, ...] = eqx.field(static=True)
+    obstacle_index: tuple[int, ...] = eqx.field(static=True)
+    energy: Float[Array, ""]
+
+    @property
+    def link(self) -> np.ndarray:
+        """(n,) link number of each row (link A for pairs)."""
+        return np.asarray(self.link_number, dtype=int)
+
+    @property
+    def obstacle(self) -> np.ndarray:
+        """(n,) obstacle index of each row (0-based), -1 for rod-rod pairs."""
+        return np.asarray(self.obstacle_index, dtype=int)
+
+    @property
+    def active(self) -> Array:
+        """(n,) True where the surfaces overlap."""
+        return self.penetration > 0
+
+    def total_force(self) -> Array:
+        """(3,) resultant contact force on the robot [N, world] (pairs cancel)."""
+        return jnp.sum(jnp.where((self.obstacle >= 0)[:, None], self.force, 0.0), 0)
+
+
+# ------------------------------------------------------------------------- kernels
+def _law_forces(law, d, n, v_rel, weight, friction: bool):
+    """Force on the robot (world) from penetration, normal and relative velocity."""
+    vn = jnp.sum(v_rel * n, axis=-1)
+    vt = v_rel - vn[:, None] * n
+    f_el = law.normal_force(d)
+    fn = f_el - law.damping * law.ramp(d) * vn
+    f = fn[:, None] * n
+    if friction:
+        speed2 = jnp.sum(vt * vt, axis=-1)
+        speed = jnp.sqrt(speed2 + law.stick_velocity**2)
+        mu = law.friction_coefficient(jnp.sqrt(speed2 + 1e-30))
+        f = f - (mu * f_el / speed)[:, None] * vt
+    return weight[:, None] * f, weight * fn, vt
+
+
+def _point_wrenches(R, p, x_c, f):
+    """Body wrenches at points (R, p) of forces ``f`` at ``x_c`` (world)."""
+    a_b = jnp.einsum("nji,nj->ni", R, x_c - p)
+    f_b = jnp.einsum("nji,nj->ni", R, f)
+    return jnp.concatenate([jnp.cross(a_b, f_b), f_b], axis=-1)
+
+
+def _world_points(g, eta, samples: Samples):
+    """Sample centres, their rotation, angular and linear velocities (world)."""
+    R = g[samples.point, :3, :3]
+    p = g[samples.point, :3, 3]
+    x = p + jnp.einsum("nij,nj->ni", R, samples.offset)
+    if eta is None:
+        z = jnp.zeros_like(x)
+        return R, p, x, z, z
+    w_b = eta[samples.point, :3]
+    v_b = eta[samples.point, 3:] + jnp.cross(w_b, samples.offset)
+    return R, p, x, jnp.einsum("nij,nj->ni", R, w_b), jnp.einsum("nij,nj->ni", R, v_b)
+
+
+def _obstacle_terms(contact: Contact, samples: Samples, g, eta, t, friction: bool):
+    """Per obstacle: (wrench rows, report rows) of every sample."""
+    law = contact.law
+    R, p, x, w, v = _world_points(g, eta, samples)
+    W = jnp.zeros((g.shape[0], 6), g.dtype)
+    rows = []
+    for ob in contact.obstacles:
+        G, Gd = ob.frame(t)
+        RG, pG = G[:3, :3], G[:3, 3]
+        xl = (x - pG) @ RG
+        phi, grad = jax.vmap(jax.value_and_grad(ob.distance))(xl)
+        n = grad @ RG.T
+        n = n / jnp.maximum(_safe_norm(n), 1e-12)[:, None]
+        d = samples.radius - phi
+        x_c = x - samples.radius[:, None] * n
+        v_obs = ((x_c - pG) @ RG) @ Gd[:3, :3].T + Gd[:3, 3]
+        v_rel = v + jnp.cross(w, x_c - x) - v_obs
+        f, fn, vt = _law_forces(law, d, n, v_rel, samples.weight, friction)
+        W = W.at[samples.point].add(_point_wrenches(R, p, x_c, f))
+        energy = jnp.sum(samples.weight * law.potential(d))
+        rows.append((x_c, n, d, fn, f, vt, energy))
+    return W, rows
+
+
+def segment_closest(p0, p1, q0, q1):
+    """Parameters (s, u) in [0, 1] of the closest points of segments p0p1 and q0q1."""
+    d1, d2, r = p1 - p0, q1 - q0, p0 - q0
+    a, e = jnp.dot(d1, d1), jnp.dot(d2, d2)
+    b, c, f = jnp.dot(d1, d2), jnp.dot(d1, r), jnp.dot(d2, r)
+    safe_a = jnp.where(a > 0, a, 1.0)
+    safe_e = jnp.where(e > 0, e, 1.0)
+    den = a * e - b * b
+    parallel = den <= 1e-12 * a * e
+    s = jnp.where(parallel, 0.0, jnp.clip((b * f - c * e) / jnp.where(parallel, 1.0, den), 0.0, 1.0))
+    s = jnp.where(a > 0, s, 0.0)
+    u = (b * s + f) / safe_e
+    s = jnp.where(u < 0, jnp.clip(-c / safe_a, 0.0, 1.0), jnp.where(u > 1, jnp.clip((b - c) / safe_a, 0.0, 1.0), s))
+    u = jnp.clip(u, 0.0, 1.0)
+    s = jnp.where(a > 0, s, 0.0)
+    u = jnp.where(e > 0, u, 0.0)
+    return s, u
+
+
+def _pair_list(linkage: Linkage):
+    """Static list of (link A, link B, index pairs) for rod pairs and self-contact."""
+    contact = linkage.contact
+    out = []
+    for a, b in contact.rod_pairs:
+        sa, ga = rod_samples(linkage, a)
+        sb, gb = rod_samples(linkage, b)
+        ia, ib = np.meshgrid(np.arange(len(ga.start)), np.arange(len(gb.start)), indexing="ij")
+        out.append((sa, ga, sb, gb, ia.ravel(), ib.ravel()))
+    for a in contact.self_contact:
+        sa, ga = rod_samples(linkage, a)
+        m = len(ga.start)
+        ia, ib = np.triu_indices(m, k=1)
+        r_max = float(np.max(np.asarray(jax.lax.stop_gradient(sa.radius)))) if not isinstance(sa.radius, jax.core.Tracer) else math.nan
+        if math.isfinite(r_max) and np.all(np.isfinite(ga.arc)):
+            keep = np.abs(ga.arc[ia] - ga.arc[ib]) > 2.5 * 2 * r_max
+        else:
+            keep = (ib - ia) > 2
+        out.append((sa, ga, sa, ga, ia[keep], ib[keep]))
+    return out
+
+
+def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
+    """Rod-rod contacts: (wrench rows, report rows)."""
+    law = contact.law
+    W = jnp.zeros((g.shape[0], 6), g.dtype)
+    rows = []
+    for sa, ga, sb, gb, ia, ib in pairs:
+        Ra, pa, xa, wa, va = _world_points(g, eta, sa)
+        Rb, pb, xb, wb, vb = _world_points(g, eta, sb)
+        a0, a1 = ga.start[ia], ga.end[ia]
+        b0, b1 = gb.start[ib], gb.end[ib]
+        s, u = jax.vmap(segment_closest)(xa[a0], xa[a1], xb[b0], xb[b1])
+        PA = xa[a0] + s[:, None] * (xa[a1] - xa[a0])
+        PB = xb[b0] + u[:, None] * (xb[b1] - xb[b0])
+        rA = (1 - s) * sa.radius[a0] + s * sa.radius[a1]
+        rB = (1 - u) * sb.radius[b0] + u * sb.radius[b1]
+        dvec = PA - PB
+        dist = _safe_norm(dvec)
+        n = dvec / jnp.maximum(dist, 1e-12)[:, None]
+        d = rA + rB - dist
+        cA = PA - rA[:, None] * n
+        cB = PB + rB[:, None] * n
+
+        def vel(x, w, v, i0, i1, c, lam):
+            v0 = v[i0] + jnp.cross(w[i0], c - x[i0])
+            v1 = v[i1] + jnp.cross(w[i1], c - x[i1])
+            return (1 - lam)[:, None] * v0 + lam[:, None] * v1
+
+        v_rel = vel(xa, wa, va, a0, a1, cA, s) - vel(xb, wb, vb, b0, b1, cB, u)
+        f, fn, vt = _law_forces(
+            law, d, n, v_rel, jnp.ones_like(d), friction and contact.friction_in_rod_pairs
+        )
+        for idx, R_, p_, c_, lam, sign, pts in (
+            (a0, Ra, pa, cA, 1 - s, 1.0, sa.point),
+            (a1, Ra, pa, cA, s, 1.0, sa.point),
+            (b0, Rb, pb, cB, 1 - u, -1.0, sb.point),
+            (b1, Rb, pb, cB, u, -1.0, sb.point),
+        ):
+            Wk = _point_wrenches(R_[idx], p_[idx], c_, sign * lam[:, None] * f)
+            W = W.at[pts[idx]].add(Wk)
+        rows.append((cA, n, d, fn, f, vt, jnp.sum(law.potential(d)), sa.link[a0]))
+    return W, rows
+
+
+def contact_wrenches(linkage: Linkage, t, g, eta=None) -> Array:
+    """Body wrenches ``(n_points, 6)`` of every contact; friction only with ``eta``."""
+    return _contact(linkage, t, g, eta)[0]
+
+
+def _contact(linkage: Linkage, t, g, eta):
+    contact = linkage.contact
+    assert contact is not None
+    friction = eta is not None
+    W = jnp.zeros((g.shape[0], 6), g.dtype)
+    rows, labels = [], []
+    if contact.obstacles:
+        samples = obstacle_samples(linkage)
+        Wo, ro = _obstacle_terms(contact, samples, g, eta, t, friction)
+        W = W + Wo
+        for k, r in enumerate(ro):
+            rows.append(r)
+            labels.append((samples.link, np.full(len(samples.link), k)))
+    pairs = _pair_list(linkage)
+    if pairs:
+        Wp, rp = _pair_terms(contact, pairs, g, eta, friction)
+        W = W + Wp
+        for r in rp:
+            rows.append(r[:7])
+            labels.append((np.asarray(r[7]), np.full(len(r[7]), -1)))
+    return W, rows, labels
+
+
+def contact_energy_from_poses(linkage: Linkage, g) -> Array:
+    """Elastic contact energy [J] at poses ``g``."""
+    _, rows, _ = _contact(linkage, 0.0, g, None)
+    return sum((r[6] for r in rows), jnp.zeros((), g.dtype))
+
+
+# --------------------------------------------------------------------- public API
+@jit
+def contact_state(
+    linkage: Linkage,
+    q: ArrayLike,
+    qd: ArrayLike | None = None,
+    t: ArrayLike = 0.0,
+) -> ContactState:
+    """Contact points, normals, penetrations, forces and slip at ``(q, qd, t)``.
+
+    Args:
+        linkage: a model with ``contact``.
+        q: coordinates ``(n_dof,)``.
+        qd: velocities ``(n_dof,)``; default zeros (no damping, no friction: the
+            statics' frictionless contact).
+        t: time [s] (moving obstacles).
+
+    Returns:
+        A :class:`ContactState` (vmap it over a trajectory's ``q``, ``qd``, ``t``).
+
+    Raises:
+        ValueError: the linkage has no contact.
+    """
+    if linkage.contact is None:
+        raise ValueError(
+            "contact_state: this linkage has no contact; give Linkage(contact="
+            "sorojax.Contact(...))."
+        )
+    from ..kinematics._recursion import kinematics_and_rates, poses
+
+    q = _as_q(linkage, q)
+    data = precompute(linkage)
+    t = jnp.asarray(t, q.dtype)
+    if qd is None:
+        g, eta = poses(data, q), None
+    else:
+        g, _, eta, _ = kinematics_and_rates(data, q, _as_q(linkage, qd, "qd"))
+    _, rows, labels = _contact(linkage, t, g, eta)
+    if not rows:
+        z = jnp.zeros((0,), q.dtype)
+        z3 = jnp.zeros((0, 3), q.dtype)
+        return ContactState(z3, z3, z, z, z3, z3, (), (), jnp.zeros((), q.dtype))
+    cat = [jnp.concatenate([r[k] for r in rows]) for k in range(6)]
+    return ContactState(
+        *cat,
+        link_number=tuple(int(i) for lab in labels for i in lab[0]),
+        obstacle_index=tuple(int(i) for lab in labels for i in lab[1]),
+        energy=sum(r[6] for r in rows),
+    )
+
+
+@jit
+def contact_energy(linkage: Linkage, q: ArrayLike) -> Float[Array, ""]:
+    """Elastic contact energy [J] at ``q`` (add it to :func:`total_energy`)."""
+    from ..kinematics._recursion import poses
+
+    q = _as_q(linkage, q)
+    if linkage.contact is None:
+        return jnp.zeros((), q.dtype)
+    return contact_energy_from_poses(linkage, poses(precompute(linkage), q))

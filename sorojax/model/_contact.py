@@ -1,0 +1,712 @@
+"""Contact: obstacles, the contact law, rigid contact shapes and the scene's contact set.
+
+What lives here is the model side of contact (immutable descriptions, their checks and
+the static sample tables); the forces are computed in :mod:`sorojax.dynamics._contact`.
+
+Geometry. A soft link's surface is a swept sphere along its centre line: contact is
+checked at sample points (significant points of the layout, so their kinematics are
+exact) spaced at most ``spacing`` apart, each a sphere of the section's radius (the
+larger half-width of the section, or a radius the user gives). A rigid link carries a
+:class:`ContactSphere`, :class:`ContactCapsule` or :class:`ContactBox` (points with
+radii in its centre-of-mass frame). Obstacles (:class:`Plane`, :class:`Sphere`,
+:class:`Capsule`, :class:`Box`) are signed-distance functions in their own frame,
+placed by a pose, or moved by a function of time. Rod-rod and self-contact are
+checked between the segments that join consecutive samples (closest points of two
+segments, so that two crossing rods cannot slip between samples).
+
+Law (:class:`ContactLaw`). With the penetration ``d`` (positive when overlapping,
+[m]) the normal force is a penalty smoothed over the depth ``delta``::
+
+    f_n(d) = 0                       d <= 0
+             k d^2 / (2 delta)       0 < d < delta
+             k (d - delta / 2)       d >= delta
+
+(continuously differentiable, with the potential ``U(d) = int_0^d f_n``: conservative),
+plus a damping ``-c s(d) v_n`` (``s`` a smooth step from 0 at d = 0 to 1 at
+``d = delta``; it always opposes the normal velocity, so it only dissipates) and a
+regularised Coulomb friction ``-mu(|v_t|) f_n v_t / sqrt(|v_t|^2 + v_s^2)`` with
+``mu`` going from the static coefficient at rest to the kinetic one above the
+Stribeck velocity. On soft links the law is per unit length (k [N/m^2], c [N s/m^2]:
+each sample carries the length it stands for); on rigid contact points, rod-rod
+segment pairs and self-contact it is per point (k [N/m], c [N s/m]).
+"""
+
+import math
+from collections.abc import Callable
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, ArrayLike, Float
+
+from ._checks import check_se3, check_shape, is_concrete
+from ._hook import Hook, as_hook
+
+
+def _safe_norm(x: Array, axis=-1) -> Array:
+    """Euclidean norm with a finite gradient at zero."""
+    sq = jnp.sum(x * x, axis=axis)
+    pos = sq > 0
+    return jnp.where(pos, jnp.sqrt(jnp.where(pos, sq, 1.0)), 0.0)
+
+
+def _check_nonnegative(field: str, value, strict: bool = False) -> None:
+    if not is_concrete(value):
+        return
+    arr = np.asarray(value, dtype=float)
+    bad = ~np.isfinite(arr) | ((arr <= 0) if strict else (arr < 0))
+    if np.any(bad):
+        need = "> 0" if strict else ">= 0"
+        raise ValueError(f"{field} = {value!r} is not allowed: give a finite value {need}.")
+
+
+def _scalar(field: str, value, strict: bool) -> Array:
+    check_shape(field, value, ())
+    _check_nonnegative(field, value, strict)
+    with jax.ensure_compile_time_eval():
+        return jnp.asarray(value, dtype=float)
+
+
+# ---------------------------------------------------------------------------- law
+class ContactLaw(eqx.Module):
+    """Smoothed penalty with damping and regularised Coulomb friction.
+
+    Attributes:
+        stiffness: k, the slope of the normal force per penetration once deeper
+            than ``smoothing``: per unit length on soft links [N/m^2], per point on
+            rigid links and segment pairs [N/m]. The penetration under a load f
+            (per length or per point) is about ``f / k + smoothing / 2``: choose k so
+            that it is small against the radii (e.g. 1e-3 of them).
+        smoothing: delta [m], the depth over which the stiffness ramps from 0 to k
+            (the force is continuously differentiable, which Newton's method and
+            gradients need). Smaller is closer to a hard contact and stiffer to
+            integrate; 1e-2 to 1e-1 of the expected penetration is a good start.
+        damping: c, normal damping per unit normal velocity [N s/m^2 per length on
+            soft links, N s/m per point], active with the same ramp over delta.
+        static_friction: mu_s >= 0, the friction coefficient at rest.
+        kinetic_friction: mu_k >= 0, the coefficient when sliding (default mu_s).
+        stick_velocity: v_s [m/s] > 0, the slip speed below which friction is
+            regularised (viscous): a body held by friction below its limit creeps
+            at about ``v_s r / sqrt(1 - r^2)``, r the ratio of the tangential load
+            to its limit. Smaller holds better and is stiffer to integrate.
+        stribeck_velocity: [m/s] > 0, the slip speed over which mu goes from
+            mu_s to mu_k (``mu = mu_k + (mu_s - mu_k) / (1 + (v / v_str)^2)``).
+    """
+
+    stiffness: Float[Array, ""]
+    smoothing: Float[Array, ""]
+    damping: Float[Array, ""]
+    static_friction: Float[Array, ""]
+    kinetic_friction: Float[Array, ""]
+    stick_velocity: Float[Array, ""]
+    stribeck_velocity: Float[Array, ""]
+
+    def __init__(
+        self,
+        stiffness: ArrayLike,
+        smoothing: ArrayLike = 1e-4,
+        damping: ArrayLike = 0.0,
+        static_friction: ArrayLike = 0.0,
+        kinetic_friction: ArrayLike | None = None,
+        stick_velocity: ArrayLike = 1e-3,
+        stribeck_velocity: ArrayLike = 1e-2,
+    ):
+        self.stiffness = _scalar("ContactLaw.stiffness", stiffness, True)
+        self.smoothing = _scalar("ContactLaw.smoothing", smoothing, True)
+        self.damping = _scalar("ContactLaw.damping", damping, False)
+        self.static_friction = _scalar(
+            "ContactLaw.static_friction", static_friction, False
+        )
+        if kinetic_friction is None:
+            kinetic_friction = self.static_friction
+        self.kinetic_friction = _scalar(
+            "ContactLaw.kinetic_friction", kinetic_friction, False
+        )
+        self.stick_velocity = _scalar("ContactLaw.stick_velocity", stick_velocity, True)
+        self.stribeck_velocity = _scalar(
+            "ContactLaw.stribeck_velocity", stribeck_velocity, True
+        )
+
+    def normal_force(self, d: Array) -> Array:
+        """``f_n(d)``: the elastic normal force at penetration ``d`` (>= 0)."""
+        k, delta = self.stiffness, self.smoothing
+        dp = jnp.maximum(d, 0.0)
+        ramp = k * dp * dp / (2.0 * delta)
+        return jnp.where(d >= delta, k * (d - 0.5 * delta), ramp)
+
+    def potential(self, d: Array) -> Array:
+        """``U(d) = int_0^d f_n``: the elastic contact energy (per length or point)."""
+        k, delta = self.stiffness, self.smoothing
+        dp = jnp.maximum(d, 0.0)
+        cubic = k * dp**3 / (6.0 * delta)
+        full = k * (0.5 * d * d - 0.5 * delta * d + delta * delta / 6.0)
+        return jnp.where(d >= delta, full, cubic)
+
+    def penetration(self, f: Array) -> Array:
+        """The penetration at which the elastic normal force is ``f`` (inverse law)."""
+        k, delta = self.stiffness, self.smoothing
+        small = jnp.sqrt(2.0 * delta * jnp.maximum(f, 0.0) / k)
+        return jnp.where(f >= 0.5 * k * delta, f / k + 0.5 * delta, small)
+
+    def ramp(self, d: Array) -> Array:
+        """Smooth step from 0 (d <= 0) to 1 (d >= delta) that switches damping on."""
+        s = jnp.clip(d / self.smoothing, 0.0, 1.0)
+        return s * s * (3.0 - 2.0 * s)
+
+    def friction_coefficient(self, speed: Array) -> Array:
+        """``mu`` at slip speed ``speed`` (static at rest, kinetic when sliding)."""
+        x = speed / self.stribeck_velocity
+        return self.kinetic_friction + (
+            self.static_friction - self.kinetic_friction
+        ) / (1.0 + x * x)
+
+
+# ---------------------------------------------------------------------- obstacles
+def _motion_pose(motion: Hook | None, pose: Array, t) -> tuple[Array, Array]:
+    """``(G, Gdot)``: the obstacle's world pose at ``t`` and its time derivative."""
+    if motion is None:
+        return pose, jnp.zeros_like(pose)
+    t = jnp.asarray(t, dtype=pose.dtype)
+    G, Gd = jax.jvp(lambda s: jnp.asarray(motion(s), dtype=pose.dtype), (t,), (jnp.ones_like(t),))
+    return G, Gd
+
+
+class AbstractObstacle(eqx.Module):
+    """A rigid obstacle: a signed-distance function in its own frame, placed in the world.
+
+    Attributes:
+        pose: (4, 4) pose of the obstacle's frame in the world.
+        motion: optional pure JAX function ``t -> (4, 4)`` world pose (replaces
+            ``pose``; a moving obstacle drags and pushes what it touches, through
+            its velocity in the damping and friction).
+        name: a label for reports and plots.
+    """
+
+    pose: eqx.AbstractVar[Float[Array, "4 4"]]
+    motion: eqx.AbstractVar[Hook | None]
+    name: eqx.AbstractVar[str]
+
+    def distance(self, x: Float[Array, "3"]) -> Float[Array, ""]:
+        """Signed distance [m] of the point ``x`` (obstacle frame) to the surface.
+
+        Negative inside. Its gradient is the outward unit normal.
+        """
+        raise NotImplementedError
+
+    @property
+    def feature_size(self) -> float:
+        """The smallest radius of curvature of the surface (static, for sampling)."""
+        return math.inf
+
+    def frame(self, t) -> tuple[Array, Array]:
+        """``(G, Gdot)``: world pose at time ``t`` and its rate."""
+        return _motion_pose(self.motion, self.pose, t)
+
+
+def _pose_field(name: str, pose) -> Array:
+    if pose is None:
+        return jnp.eye(4)
+    check_se3(name, pose)
+    with jax.ensure_compile_time_eval():
+        return jnp.asarray(pose, dtype=float)
+
+
+def _motion_field(name: str, motion):
+    if motion is not None and not callable(motion):
+        raise ValueError(f"{name} = {motion!r}: give a function t -> (4, 4) pose, or None.")
+    return as_hook(motion, name)
+
+
+class Plane(AbstractObstacle):
+    """A half-space: the solid lies below the plane through ``point`` with ``normal``.
+
+    A floor is ``Plane()`` (z = 0, solid below); an inclined plane tilts the normal.
+    ``point`` and ``normal`` are in the obstacle frame (``pose``, default identity).
+
+    Attributes:
+        point: a point of the plane [m].
+        normal: outward unit normal (normalised here).
+    """
+
+    point: Float[Array, "3"]
+    normal: Float[Array, "3"]
+    pose: Float[Array, "4 4"]
+    motion: Hook | None
+    name: str = eqx.field(static=True)
+
+    def __init__(
+        self,
+        point: ArrayLike = (0.0, 0.0, 0.0),
+        normal: ArrayLike = (0.0, 0.0, 1.0),
+        pose: ArrayLike | None = None,
+        motion: Callable | None = None,
+        name: str = "plane",
+    ):
+        check_shape("Plane.point", point, (3,))
+        check_shape("Plane.normal", normal, (3,))
+        if is_concrete(normal) and not np.linalg.norm(np.asarray(normal, float)) > 0:
+            raise ValueError(
+                f"Plane.normal = {normal!r} has zero length: give the outward normal, "
+                "e.g. (0, 0, 1) for a floor."
+            )
+        with jax.ensure_compile_time_eval():
+            n = jnp.asarray(normal, dtype=float)
+            self.normal = n / jnp.linalg.norm(n)
+            self.point = jnp.asarray(point, dtype=float)
+        self.pose = _pose_field("Plane.pose", pose)
+        self.motion = _motion_field("Plane.motion", motion)
+        self.name = name
+
+    def distance(self, x):
+        """Height of ``x`` above the plane."""
+        return jnp.dot(x - self.point, self.normal)
+
+
+class Sphere(AbstractObstacle):
+    """A solid sphere.
+
+    Attributes:
+        centre: centre in the obstacle frame [m].
+        radius: radius [m] > 0.
+    """
+
+    centre: Float[Array, "3"]
+    radius: Float[Array, ""]
+    pose: Float[Array, "4 4"]
+    motion: Hook | None
+    name: str = eqx.field(static=True)
+
+    def __init__(
+        self,
+        radius: ArrayLike,
+        centre: ArrayLike = (0.0, 0.0, 0.0),
+        pose: ArrayLike | None = None,
+        motion: Callable | None = None,
+        name: str = "sphere",
+    ):
+        check_shape("Sphere.centre", centre, (3,))
+        self.radius = _scalar("Sphere.radius", radius, True)
+        with jax.ensure_compile_time_eval():
+            self.centre = jnp.asarray(centre, dtype=float)
+        self.pose = _pose_field("Sphere.pose", pose)
+        self.motion = _motion_field("Sphere.motion", motion)
+        self.name = name
+
+    def distance(self, x):
+        """Distance to the centre minus the radius."""
+        return _safe_norm(x - self.centre) - self.radius
+
+    @property
+    def feature_size(self) -> float:
+        """The radius."""
+        return float(self.radius) if is_concrete(self.radius) else math.inf
+
+
+def closest_on_segment(x: Array, a: Array, b: Array) -> Array:
+    """Parameter s in [0, 1] of the point of segment ``a b`` closest to ``x``."""
+    ab = b - a
+    den = jnp.dot(ab, ab)
+    safe = jnp.where(den > 0, den, 1.0)
+    return jnp.where(den > 0, jnp.clip(jnp.dot(x - a, ab) / safe, 0.0, 1.0), 0.0)
+
+
+class Capsule(AbstractObstacle):
+    """A capsule (a segment swept by a sphere): a rounded finite cylinder, a peg.
+
+    Attributes:
+        start: one end of the axis, obstacle frame [m].
+        end: the other end [m].
+        radius: radius [m] > 0.
+    """
+
+    start: Float[Array, "3"]
+    end: Float[Array, "3"]
+    radius: Float[Array, ""]
+    pose: Float[Array, "4 4"]
+    motion: Hook | None
+    name: str = eqx.field(static=True)
+
+    def __init__(
+        self,
+        radius: ArrayLike,
+        start: ArrayLike = (0.0, 0.0, -1.0),
+        end: ArrayLike = (0.0, 0.0, 1.0),
+        pose: ArrayLike | None = None,
+        motion: Callable | None = None,
+        name: str = "capsule",
+    ):
+        check_shape("Capsule.start", start, (3,))
+        check_shape("Capsule.end", end, (3,))
+        self.radius = _scalar("Capsule.radius", radius, True)
+        with jax.ensure_compile_time_eval():
+            self.start = jnp.asarray(start, dtype=float)
+            self.end = jnp.asarray(end, dtype=float)
+        self.pose = _pose_field("Capsule.pose", pose)
+        self.motion = _motion_field("Capsule.motion", motion)
+        self.name = name
+
+    def distance(self, x):
+        """Distance to the axis segment minus the radius."""
+        s = closest_on_segment(x, self.start, self.end)
+        return _safe_norm(x - (self.start + s * (self.end - self.start))) - self.radius
+
+    @property
+    def feature_size(self) -> float:
+        """The radius."""
+        return float(self.radius) if is_concrete(self.radius) else math.inf
+
+
+class Box(AbstractObstacle):
+    """A solid box centred at the obstacle frame's origin, edges along its axes.
+
+    Attributes:
+        half_extents: half-lengths along x, y, z [m], each > 0.
+    """
+
+    half_extents: Float[Array, "3"]
+    pose: Float[Array, "4 4"]
+    motion: Hook | None
+    name: str = eqx.field(static=True)
+
+    def __init__(
+        self,
+        half_extents: ArrayLike,
+        pose: ArrayLike | None = None,
+        motion: Callable | None = None,
+        name: str = "box",
+    ):
+        check_shape("Box.half_extents", half_extents, (3,))
+        _check_nonnegative("Box.half_extents", half_extents, strict=True)
+        with jax.ensure_compile_time_eval():
+            self.half_extents = jnp.asarray(half_extents, dtype=float)
+        self.pose = _pose_field("Box.pose", pose)
+        self.motion = _motion_field("Box.motion", motion)
+        self.name = name
+
+    def distance(self, x):
+        """Exact signed distance of a box (outside: to the surface; inside: -depth)."""
+        q = jnp.abs(x) - self.half_extents
+        outside = _safe_norm(jnp.maximum(q, 0.0))
+        inside = jnp.minimum(jnp.max(q), 0.0)
+        return outside + inside
+
+
+# ------------------------------------------------------------ rigid contact shapes
+class AbstractContactShape(eqx.Module):
+    """The contact surface of a rigid link: spheres at points of its CM frame."""
+
+    def points(self) -> tuple[Array, Array]:
+        """``(offsets (n, 3) in the CM frame [m], radii (n,) [m])``."""
+        raise NotImplementedError
+
+
+class ContactSphere(AbstractContactShape):
+    """A sphere of ``radius`` centred at ``centre`` (CM frame; default the CM).
+
+    Attributes:
+        radius: [m] > 0.
+        centre: (3,) in the CM frame [m].
+    """
+
+    radius: Float[Array, ""]
+    centre: Float[Array, "3"]
+
+    def __init__(self, radius: ArrayLike, centre: ArrayLike = (0.0, 0.0, 0.0)):
+        check_shape("ContactSphere.centre", centre, (3,))
+        self.radius = _scalar("ContactSphere.radius", radius, True)
+        with jax.ensure_compile_time_eval():
+            self.centre = jnp.asarray(centre, dtype=float)
+
+    def points(self):
+        """One sphere."""
+        return self.centre[None], self.radius[None]
+
+
+class ContactCapsule(AbstractContactShape):
+    """A capsule along the CM frame's x axis (a rounded cylinder), sampled by spheres.
+
+    Attributes:
+        length: length of the axis segment [m] > 0 (centred at the CM).
+        radius: [m] > 0.
+        n_samples: spheres along the axis (static, >= 2).
+    """
+
+    length: Float[Array, ""]
+    radius: Float[Array, ""]
+    n_samples: int = eqx.field(static=True)
+
+    def __init__(self, length: ArrayLike, radius: ArrayLike, n_samples: int | None = None):
+        self.length = _scalar("ContactCapsule.length", length, True)
+        self.radius = _scalar("ContactCapsule.radius", radius, True)
+        if n_samples is None:
+            n_samples = (
+                max(2, math.ceil(float(length) / float(radius)) + 1)
+                if is_concrete(self.length) and is_concrete(self.radius)
+                else 8
+            )
+        if not isinstance(n_samples, int) or n_samples < 2:
+            raise ValueError(
+                f"ContactCapsule.n_samples = {n_samples!r}: give an integer >= 2."
+            )
+        self.n_samples = n_samples
+
+    def points(self):
+        """Spheres spaced evenly along the axis."""
+        s = jnp.linspace(-0.5, 0.5, self.n_samples) * self.length
+        z = jnp.zeros_like(s)
+        return jnp.stack([s, z, z], axis=1), jnp.broadcast_to(self.radius, s.shape)
+
+
+class ContactBox(AbstractContactShape):
+    """A box centred at the CM, sampled at its corners, edge midpoints and face centres.
+
+    The samples have zero radius: a box touches a plane, a sphere or a rod at them
+    only (a sharp obstacle edge against the middle of a face is not seen).
+
+    Attributes:
+        half_extents: half-lengths along the CM frame's x, y, z [m], each > 0.
+    """
+
+    half_extents: Float[Array, "3"]
+
+    def __init__(self, half_extents: ArrayLike):
+        check_shape("ContactBox.half_extents", half_extents, (3,))
+        _check_nonnegative("ContactBox.half_extents", half_extents, strict=True)
+        with jax.ensure_compile_time_eval():
+            self.half_extents = jnp.asarray(half_extents, dtype=float)
+
+    def points(self):
+        """26 points: 8 corners, 12 edge midpoints, 6 face centres."""
+        grid = np.array(
+            [(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)
+             if (i, j, k) != (0, 0, 0)],
+            dtype=float,
+        )  # fmt: skip
+        pts = jnp.asarray(grid) * self.half_extents
+        return pts, jnp.zeros(len(grid), dtype=pts.dtype)
+
+
+# ------------------------------------------------------------- the contact set
+class Contact(eqx.Module):
+    """Which links touch what, and how: give it to ``Linkage(contact=...)``.
+
+    Attributes:
+        obstacles: tuple of obstacles (:class:`Plane`, :class:`Sphere`,
+            :class:`Capsule`, :class:`Box`).
+        law: the :class:`ContactLaw` (one for every contact of the scene).
+        links: 1-based numbers of the links that touch the obstacles; default all
+            soft links and every rigid link that has a shape.
+        shapes: ``{link: AbstractContactShape}`` for rigid links.
+        radius: ``{link: radius [m]}`` overriding a soft link's section extent.
+        spacing: largest distance between a soft link's samples [m]; default the
+            smallest of the link's radius and the obstacles' radii of curvature
+            (so that a 1 cm rod and a 1 cm sphere cannot miss each other by more
+            than 7 % of the radius), with at least 4 cells per division.
+        rod_pairs: pairs ``(a, b)`` of soft links checked against each other
+            (segment-segment closest points).
+        self_contact: soft links checked against themselves (segments further apart
+            along the rod than 2.5 times the sum of their radii).
+        friction_in_rod_pairs: whether rod-rod contacts carry friction (default
+            True; the law's coefficients).
+    """
+
+    obstacles: tuple[AbstractObstacle, ...]
+    law: ContactLaw
+    links: tuple[int, ...] | None = eqx.field(static=True)
+    shapes: tuple[tuple[int, AbstractContactShape], ...]
+    radius: tuple[tuple[int, Float[Array, ""]], ...]
+    spacing: float | None = eqx.field(static=True)
+    rod_pairs: tuple[tuple[int, int], ...] = eqx.field(static=True)
+    self_contact: tuple[int, ...] = eqx.field(static=True)
+    friction_in_rod_pairs: bool = eqx.field(static=True)
+    cells: tuple | None = eqx.field(static=True)  # resolved by the Linkage
+
+    def __init__(
+        self,
+        obstacles=(),
+        law: ContactLaw | None = None,
+        links=None,
+        shapes=None,
+        radius=None,
+        spacing: float | None = None,
+        rod_pairs=(),
+        self_contact=(),
+        friction_in_rod_pairs: bool = True,
+        cells: tuple | None = None,
+    ):
+        if isinstance(obstacles, AbstractObstacle):
+            obstacles = (obstacles,)
+        obstacles = tuple(obstacles)
+        for k, ob in enumerate(obstacles):
+            if not isinstance(ob, AbstractObstacle):
+                raise ValueError(
+                    f"Contact.obstacles[{k}] = {ob!r}: give a Plane, Sphere, Capsule "
+                    "or Box."
+                )
+        if not isinstance(law, ContactLaw):
+            raise ValueError(
+                f"Contact.law = {law!r}: give a ContactLaw(stiffness=...), e.g. "
+                "ContactLaw(stiffness=1e5, smoothing=1e-4)."
+            )
+        if spacing is not None and not (
+            math.isfinite(float(spacing)) and float(spacing) > 0
+        ):
+            raise ValueError(
+                f"Contact.spacing = {spacing!r}: give a distance > 0 [m] or None."
+            )
+        shapes = dict(shapes or {})
+        for link, shape in shapes.items():
+            if not isinstance(shape, AbstractContactShape):
+                raise ValueError(
+                    f"Contact.shapes[{link}] = {shape!r}: give a ContactSphere, "
+                    "ContactCapsule or ContactBox."
+                )
+        radius = dict(radius or {})
+        for link, r in radius.items():
+            _check_nonnegative(f"Contact.radius[{link}]", r, strict=True)
+        self.obstacles = obstacles
+        self.law = law
+        self.links = None if links is None else tuple(int(i) for i in links)
+        self.shapes = tuple(sorted((int(k), v) for k, v in shapes.items()))
+        with jax.ensure_compile_time_eval():
+            self.radius = tuple(
+                sorted((int(k), jnp.asarray(v, dtype=float)) for k, v in radius.items())
+            )
+        self.spacing = None if spacing is None else float(spacing)
+        self.rod_pairs = tuple((int(a), int(b)) for a, b in rod_pairs)
+        self.self_contact = tuple(int(i) for i in self_contact)
+        self.friction_in_rod_pairs = bool(friction_in_rod_pairs)
+        self.cells = cells
+
+    def shape_of(self, link: int) -> AbstractContactShape | None:
+        """The contact shape of rigid link ``link`` (None if it has none)."""
+        return dict(self.shapes).get(link)
+
+    def radius_of(self, link: int):
+        """The radius override of soft link ``link`` (None: the section's)."""
+        return dict(self.radius).get(link)
+
+
+DEFAULT_TRACED_CELLS = 16  # cells per division when the lengths are traced
+MIN_CELLS = 4
+MAX_CELLS = 400
+
+
+def _concrete_float(x) -> float | None:
+    if not is_concrete(x):
+        return None
+    return float(np.asarray(x))
+
+
+def soft_radius(contact: Contact, link_number: int, division, X1) -> Array:
+    """Contact radius of a soft link at ``X1`` of ``division``: override or section."""
+    r = contact.radius_of(link_number)
+    if r is not None:
+        return r
+    ey, ez = division.section.extent(X1)
+    return jnp.maximum(ey, ez)
+
+
+def contact_links(contact: Contact, links) -> tuple[int, ...]:
+    """The links (1-based) whose samples are checked against the obstacles."""
+    from ._link import SoftLink
+
+    if contact.links is not None:
+        return contact.links
+    return tuple(
+        i
+        for i, link in enumerate(links, start=1)
+        if isinstance(link, SoftLink) or contact.shape_of(i) is not None
+    )
+
+
+def resolve_contact(contact: Contact, links) -> Contact:
+    """Check ``contact`` against the links and fix its sample counts (``cells``).
+
+    ``cells`` is a tuple of ``(link, (n_cells per division))`` over the soft links
+    that are sampled: those touching obstacles, in rod pairs or self-contact.
+    """
+    from ._link import RigidLink, SoftLink
+
+    if not isinstance(contact, Contact):
+        raise ValueError(f"Linkage.contact = {contact!r}: give a sorojax.Contact.")
+    n = len(links)
+
+    def check_link(field, i, soft_only=False):
+        if not 1 <= i <= n:
+            raise ValueError(f"{field} = {i} is out of range: give a link in 1..{n}.")
+        if soft_only and not isinstance(links[i - 1], SoftLink):
+            raise ValueError(
+                f"{field} = {i}: link {i} is rigid; rod-rod and self-contact are "
+                "between soft links (give a rigid link a shape in Contact.shapes)."
+            )
+
+    for i in contact.links or ():
+        check_link("Contact.links", i)
+        if isinstance(links[i - 1], RigidLink) and contact.shape_of(i) is None:
+            raise ValueError(
+                f"Contact.links includes rigid link {i}, which has no contact shape: "
+                f"give Contact(shapes={{{i}: ContactSphere(r)}}) (or a capsule or box)."
+            )
+    for i, _ in contact.shapes:
+        check_link("Contact.shapes key", i)
+        if not isinstance(links[i - 1], RigidLink):
+            raise ValueError(
+                f"Contact.shapes[{i}]: link {i} is soft; a soft link's surface is its "
+                "section swept along the rod (override its radius with "
+                "Contact(radius={...}))."
+            )
+    for i, _ in contact.radius:
+        check_link("Contact.radius key", i, soft_only=True)
+    for a, b in contact.rod_pairs:
+        check_link("Contact.rod_pairs entry", a, soft_only=True)
+        check_link("Contact.rod_pairs entry", b, soft_only=True)
+        if a == b:
+            raise ValueError(
+                f"Contact.rod_pairs has ({a}, {b}): a link against itself is "
+                f"self-contact: give Contact(self_contact=({a},))."
+            )
+    for i in contact.self_contact:
+        check_link("Contact.self_contact entry", i, soft_only=True)
+    sampled = set(
+        i
+        for i in (contact_links(contact, links) if contact.obstacles else ())
+        if isinstance(links[i - 1], SoftLink)
+    )
+    sampled |= {i for pair in contact.rod_pairs for i in pair}
+    sampled |= set(contact.self_contact)
+    features = [ob.feature_size for ob in contact.obstacles]
+    given = dict(contact.cells or ())
+    cells = []
+    for i in sorted(sampled):
+        link = links[i - 1]
+        per_div = []
+        for k, div in enumerate(link.divisions):
+            L = _concrete_float(div.length)
+            radii = [
+                _concrete_float(soft_radius(contact, i, div, x)) for x in (0.0, 0.5, 1.0)
+            ]
+            if L is None or any(r is None for r in radii):
+                old = given.get(i)
+                per_div.append(
+                    old[k] if old is not None and len(old) > k else DEFAULT_TRACED_CELLS
+                )
+                continue
+            h = contact.spacing
+            if h is None:
+                h = min([min(radii), *features])  # type: ignore[type-var]
+            per_div.append(int(min(MAX_CELLS, max(MIN_CELLS, math.ceil(L / h - 1e-9)))))
+        cells.append((i, tuple(per_div)))
+    return Contact(
+        contact.obstacles,
+        contact.law,
+        links=contact.links,
+        shapes=dict(contact.shapes),
+        radius=dict(contact.radius),
+        spacing=contact.spacing,
+        rod_pairs=contact.rod_pairs,
+        self_contact=contact.self_contact,
+        friction_in_rod_pairs=contact.friction_in_rod_pairs,
+        cells=tuple(cells),
+    )
