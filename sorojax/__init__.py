@@ -32,6 +32,18 @@ _LAZY = {
     "Environment": ".control",
     "EnvState": ".control",
     "rollout": ".control",
+    "Box": ".model",
+    "Capsule": ".model",
+    "Contact": ".model",
+    "ContactBox": ".model",
+    "ContactCapsule": ".model",
+    "ContactLaw": ".model",
+    "ContactSphere": ".model",
+    "Plane": ".model",
+    "Sphere": ".model",
+    "ContactState": ".dynamics",
+    "contact_energy": ".dynamics",
+    "contact_state": ".dynamics",
     "actuation_matrix": ".dynamics",
     "cable_lengths": ".dynamics",
     "closure_errors": ".dynamics",
@@ -150,10 +162,13 @@ if TYPE_CHECKING:  # static analysers see the names as plain imports
     from .control import Environment as Environment
     from .control import EnvState as EnvState
     from .control import rollout as rollout
+    from .dynamics import ContactState as ContactState
     from .dynamics import actuation_matrix as actuation_matrix
     from .dynamics import cable_lengths as cable_lengths
     from .dynamics import closure_errors as closure_errors
     from .dynamics import constraint_jacobian as constraint_jacobian
+    from .dynamics import contact_energy as contact_energy
+    from .dynamics import contact_state as contact_state
     from .dynamics import coriolis_force as coriolis_force
     from .dynamics import coriolis_matrix as coriolis_matrix
     from .dynamics import damping_matrix as damping_matrix
@@ -180,12 +195,19 @@ if TYPE_CHECKING:  # static analysers see the names as plain imports
     from .kinematics import screw_velocities as screw_velocities
     from .kinematics import strain_coordinates as strain_coordinates
     from .kinematics import tip_pose as tip_pose
+    from .model import Box as Box
     from .model import Cable as Cable
     from .model import CableAnchor as CableAnchor
     from .model import CableSpan as CableSpan
+    from .model import Capsule as Capsule
     from .model import CircularSection as CircularSection
     from .model import ClosedLoopJoint as ClosedLoopJoint
     from .model import ConstantPath as ConstantPath
+    from .model import Contact as Contact
+    from .model import ContactBox as ContactBox
+    from .model import ContactCapsule as ContactCapsule
+    from .model import ContactLaw as ContactLaw
+    from .model import ContactSphere as ContactSphere
     from .model import CustomBasis as CustomBasis
     from .model import CustomPath as CustomPath
     from .model import Division as Division
@@ -199,11 +221,13 @@ if TYPE_CHECKING:  # static analysers see the names as plain imports
     from .model import MonomialBasis as MonomialBasis
     from .model import ObliquePath as ObliquePath
     from .model import PaddedBasis as PaddedBasis
+    from .model import Plane as Plane
     from .model import PointWrench as PointWrench
     from .model import RectangularSection as RectangularSection
     from .model import RigidLink as RigidLink
     from .model import SectionProperties as SectionProperties
     from .model import SoftLink as SoftLink
+    from .model import Sphere as Sphere
     from .model import active_coordinates as active_coordinates
     from .model import rectangle_torsion_constant as rectangle_torsion_constant
     from .model import size_class as size_class

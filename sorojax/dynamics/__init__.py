@@ -5,6 +5,9 @@ from ._actuation import cable_lengths as cable_lengths
 from ._constraints import closure_errors as closure_errors
 from ._constraints import constraint_jacobian as constraint_jacobian
 from ._constraints import numerical_rank as numerical_rank
+from ._contact import ContactState as ContactState
+from ._contact import contact_energy as contact_energy
+from ._contact import contact_state as contact_state
 from ._elastic import damping_matrix as damping_matrix
 from ._elastic import stiffness_matrix as stiffness_matrix
 from ._energy import elastic_energy as elastic_energy

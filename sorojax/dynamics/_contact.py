@@ -26,7 +26,7 @@ from jaxtyping import Array, ArrayLike, Float
 
 from .._jit import jit
 from ..kinematics._api import _as_q
-from ..model._contact import Contact, closest_on_segment, contact_links, soft_radius
+from ..model._contact import Contact, contact_links, soft_radius
 from ..model._linkage import Linkage
 from ..model._precompute import precompute
 
@@ -64,11 +64,15 @@ def _division_samples(linkage: Linkage, contact: Contact, link_number: int):
     out = []
     for div, dl, n in zip(link.divisions, layout.divisions, cells, strict=True):
         X1 = np.arange(n + 1) / n
-        idx = np.asarray([dl.first_point + int(np.argmin(np.abs(dl.X1 - x))) for x in X1])
+        idx = np.asarray(
+            [dl.first_point + int(np.argmin(np.abs(dl.X1 - x))) for x in X1]
+        )
         w = np.full(n + 1, 1.0 / n)
         w[0] = w[-1] = 0.5 / n
         weight = div.length * jnp.asarray(w)
-        radius = jnp.stack([soft_radius(contact, link_number, div, float(x)) for x in X1])
+        radius = jnp.stack(
+            [soft_radius(contact, link_number, div, float(x)) for x in X1]
+        )
         out.append((idx, weight, radius.astype(weight.dtype), X1))
     return out
 
@@ -237,13 +241,13 @@ def _obstacle_terms(contact: Contact, samples: Samples, g, eta, t, friction: boo
     for ob in contact.obstacles:
         G, Gd = ob.frame(t)
         RG, pG = G[:3, :3], G[:3, 3]
-        xl = (x - pG) @ RG
+        xl = (x - pG[None]) @ RG
         phi, grad = jax.vmap(jax.value_and_grad(ob.distance))(xl)
         n = grad @ RG.T
         n = n / jnp.maximum(_safe_norm(n), 1e-12)[:, None]
         d = samples.radius - phi
         x_c = x - samples.radius[:, None] * n
-        v_obs = ((x_c - pG) @ RG) @ Gd[:3, :3].T + Gd[:3, 3]
+        v_obs = ((x_c - pG[None]) @ RG) @ Gd[:3, :3].T + Gd[None, :3, 3]
         v_rel = v + jnp.cross(w, x_c - x) - v_obs
         f, fn, vt = _law_forces(law, d, n, v_rel, samples.weight, friction)
         W = W.at[samples.point].add(_point_wrenches(R, p, x_c, f))
@@ -261,10 +265,18 @@ def segment_closest(p0, p1, q0, q1):
     safe_e = jnp.where(e > 0, e, 1.0)
     den = a * e - b * b
     parallel = den <= 1e-12 * a * e
-    s = jnp.where(parallel, 0.0, jnp.clip((b * f - c * e) / jnp.where(parallel, 1.0, den), 0.0, 1.0))
+    s = jnp.where(
+        parallel,
+        0.0,
+        jnp.clip((b * f - c * e) / jnp.where(parallel, 1.0, den), 0.0, 1.0),
+    )
     s = jnp.where(a > 0, s, 0.0)
     u = (b * s + f) / safe_e
-    s = jnp.where(u < 0, jnp.clip(-c / safe_a, 0.0, 1.0), jnp.where(u > 1, jnp.clip((b - c) / safe_a, 0.0, 1.0), s))
+    s = jnp.where(
+        u < 0,
+        jnp.clip(-c / safe_a, 0.0, 1.0),
+        jnp.where(u > 1, jnp.clip((b - c) / safe_a, 0.0, 1.0), s),
+    )
     u = jnp.clip(u, 0.0, 1.0)
     s = jnp.where(a > 0, s, 0.0)
     u = jnp.where(e > 0, u, 0.0)
@@ -278,13 +290,19 @@ def _pair_list(linkage: Linkage):
     for a, b in contact.rod_pairs:
         sa, ga = rod_samples(linkage, a)
         sb, gb = rod_samples(linkage, b)
-        ia, ib = np.meshgrid(np.arange(len(ga.start)), np.arange(len(gb.start)), indexing="ij")
+        ia, ib = np.meshgrid(
+            np.arange(len(ga.start)), np.arange(len(gb.start)), indexing="ij"
+        )
         out.append((sa, ga, sb, gb, ia.ravel(), ib.ravel()))
     for a in contact.self_contact:
         sa, ga = rod_samples(linkage, a)
         m = len(ga.start)
         ia, ib = np.triu_indices(m, k=1)
-        r_max = float(np.max(np.asarray(jax.lax.stop_gradient(sa.radius)))) if not isinstance(sa.radius, jax.core.Tracer) else math.nan
+        r_max = (
+            float(np.max(np.asarray(jax.lax.stop_gradient(sa.radius))))
+            if not isinstance(sa.radius, jax.core.Tracer)
+            else math.nan
+        )
         if math.isfinite(r_max) and np.all(np.isfinite(ga.arc)):
             keep = np.abs(ga.arc[ia] - ga.arc[ib]) > 2.5 * 2 * r_max
         else:
@@ -322,7 +340,12 @@ def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
 
         v_rel = vel(xa, wa, va, a0, a1, cA, s) - vel(xb, wb, vb, b0, b1, cB, u)
         f, fn, vt = _law_forces(
-            law, d, n, v_rel, jnp.ones_like(d), friction and contact.friction_in_rod_pairs
+            law,
+            d,
+            n,
+            v_rel,
+            jnp.ones_like(d),
+            friction and contact.friction_in_rod_pairs,
         )
         for idx, R_, p_, c_, lam, sign, pts in (
             (a0, Ra, pa, cA, 1 - s, 1.0, sa.point),
@@ -339,6 +362,28 @@ def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
 def contact_wrenches(linkage: Linkage, t, g, eta=None) -> Array:
     """Body wrenches ``(n_points, 6)`` of every contact; friction only with ``eta``."""
     return _contact(linkage, t, g, eta)[0]
+
+
+def contact_wrenches_and_penetrations(linkage: Linkage, t, g) -> tuple[Array, Array]:
+    """Frictionless contact wrenches and every contact's penetration (statics)."""
+    W, rows, _ = _contact(linkage, t, g, None)
+    pen = [r[2] for r in rows]
+    return W, (jnp.concatenate(pen) if pen else jnp.zeros((0,), g.dtype))
+
+
+def smallest_radius(linkage: Linkage) -> Array:
+    """The smallest contact radius of the scene's samples [m] (inf if none)."""
+    contact = linkage.contact
+    assert contact is not None
+    radii = [obstacle_samples(linkage).radius] if contact.obstacles else []
+    for link in sorted(
+        {i for p in contact.rod_pairs for i in p} | set(contact.self_contact)
+    ):
+        radii.append(rod_samples(linkage, link)[0].radius)
+    radii = [r for r in radii if r.shape[0]]
+    if not radii:
+        return jnp.asarray(jnp.inf)
+    return jnp.min(jnp.concatenate(radii))
 
 
 def _contact(linkage: Linkage, t, g, eta):

@@ -1,4 +1,4 @@
-"""Contact: obstacles, the contact law, rigid contact shapes and the scene's contact set.
+"""Contact: obstacles, the contact law, rigid contact shapes and the contact set.
 
 What lives here is the model side of contact (immutable descriptions, their checks and
 the static sample tables); the forces are computed in :mod:`sorojax.dynamics._contact`.
@@ -58,7 +58,9 @@ def _check_nonnegative(field: str, value, strict: bool = False) -> None:
     bad = ~np.isfinite(arr) | ((arr <= 0) if strict else (arr < 0))
     if np.any(bad):
         need = "> 0" if strict else ">= 0"
-        raise ValueError(f"{field} = {value!r} is not allowed: give a finite value {need}.")
+        raise ValueError(
+            f"{field} = {value!r} is not allowed: give a finite value {need}."
+        )
 
 
 def _scalar(field: str, value, strict: bool) -> Array:
@@ -168,12 +170,14 @@ def _motion_pose(motion: Hook | None, pose: Array, t) -> tuple[Array, Array]:
     if motion is None:
         return pose, jnp.zeros_like(pose)
     t = jnp.asarray(t, dtype=pose.dtype)
-    G, Gd = jax.jvp(lambda s: jnp.asarray(motion(s), dtype=pose.dtype), (t,), (jnp.ones_like(t),))
+    G, Gd = jax.jvp(
+        lambda s: jnp.asarray(motion(s), dtype=pose.dtype), (t,), (jnp.ones_like(t),)
+    )
     return G, Gd
 
 
 class AbstractObstacle(eqx.Module):
-    """A rigid obstacle: a signed-distance function in its own frame, placed in the world.
+    """A rigid obstacle: a signed-distance function of its own frame, placed by a pose.
 
     Attributes:
         pose: (4, 4) pose of the obstacle's frame in the world.
@@ -214,7 +218,9 @@ def _pose_field(name: str, pose) -> Array:
 
 def _motion_field(name: str, motion):
     if motion is not None and not callable(motion):
-        raise ValueError(f"{name} = {motion!r}: give a function t -> (4, 4) pose, or None.")
+        raise ValueError(
+            f"{name} = {motion!r}: give a function t -> (4, 4) pose, or None."
+        )
     return as_hook(motion, name)
 
 
@@ -436,7 +442,9 @@ class ContactCapsule(AbstractContactShape):
     radius: Float[Array, ""]
     n_samples: int = eqx.field(static=True)
 
-    def __init__(self, length: ArrayLike, radius: ArrayLike, n_samples: int | None = None):
+    def __init__(
+        self, length: ArrayLike, radius: ArrayLike, n_samples: int | None = None
+    ):
         self.length = _scalar("ContactCapsule.length", length, True)
         self.radius = _scalar("ContactCapsule.radius", radius, True)
         if n_samples is None:
@@ -483,7 +491,7 @@ class ContactBox(AbstractContactShape):
              if (i, j, k) != (0, 0, 0)],
             dtype=float,
         )  # fmt: skip
-        pts = jnp.asarray(grid) * self.half_extents
+        pts = jnp.asarray(grid) * self.half_extents[None]
         return pts, jnp.zeros(len(grid), dtype=pts.dtype)
 
 
@@ -685,7 +693,8 @@ def resolve_contact(contact: Contact, links) -> Contact:
         for k, div in enumerate(link.divisions):
             L = _concrete_float(div.length)
             radii = [
-                _concrete_float(soft_radius(contact, i, div, x)) for x in (0.0, 0.5, 1.0)
+                _concrete_float(soft_radius(contact, i, div, x))
+                for x in (0.0, 0.5, 1.0)
             ]
             if L is None or any(r is None for r in radii):
                 old = given.get(i)

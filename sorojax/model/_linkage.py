@@ -209,9 +209,7 @@ class Linkage(eqx.Module):
         if contact is not None:
             for link, cells in contact.cells:
                 for k, n in enumerate(cells, start=1):
-                    extra.setdefault((link, k), []).extend(
-                        j / n for j in range(1, n)
-                    )
+                    extra.setdefault((link, k), []).extend(j / n for j in range(1, n))
         sig = []
         for i, (link, parent) in enumerate(
             zip(self.links, self.parents, strict=True), 1

@@ -41,8 +41,8 @@ from ..dynamics._constraints import (
     closure_errors_and_wrenches,
     numerical_rank,
 )
+from ..dynamics._contact import contact_wrenches_and_penetrations, smallest_radius
 from ..dynamics._eom import as_inputs
-from ..dynamics._contact import contact_wrenches
 from ..dynamics._external import custom_wrenches, external_wrenches
 from ..dynamics._generalized import kinematics_from_data
 from ..dynamics._wrench_recursion import force_from_wrenches, poses_with_records
@@ -75,7 +75,7 @@ def equilibrium_residual(
 
 
 def _residual_and_closure(linkage: Linkage, data: LinkageData, q, t, lam, u, mu):
-    """``(r, e)``: the equilibrium residual and the closure errors, one pose pass.
+    """``(r, e, d)``: residual, closure errors and contact penetrations, one pose pass.
 
     Every load is gathered as body wrenches at the significant points (gravity,
     point wrenches, cable segments outside the body, the multipliers' ``A^T mu``)
@@ -96,8 +96,10 @@ def _residual_and_closure(linkage: Linkage, data: LinkageData, q, t, lam, u, mu)
         g, records = poses_with_records(data, q)
         kin = None
     W = lam * external_wrenches(linkage, data, t, g)
+    d = jnp.zeros((0,), q.dtype)
     if linkage.contact is not None:  # a reaction: never scaled by the load factor
-        W = W + contact_wrenches(linkage, t, g)
+        Wk, d = contact_wrenches_and_penetrations(linkage, t, g)
+        W = W + Wk
     if linkage.custom_wrench is not None:
         W = W + lam * custom_wrenches(linkage, data, t, q, qd, kin)
     Q = jnp.zeros_like(q)
@@ -117,7 +119,7 @@ def _residual_and_closure(linkage: Linkage, data: LinkageData, q, t, lam, u, mu)
         F = force_from_wrenches(data, records, W)
     else:
         F = jnp.einsum("pai,pa->i", kin.J, W)
-    return data.K @ q - F - Q, e
+    return data.K @ q - F - Q, e, d
 
 
 def free_coordinates(linkage: Linkage) -> np.ndarray:
@@ -129,7 +131,9 @@ def scaled_equilibrium(linkage: Linkage, data: LinkageData, x, t, lam, u, q_p):
     """``(f, r)``: the statics solver's rows at unknowns ``x = (q_free, mu)``.
 
     ``f = (diag(K)^-1 r_free, e)`` (Jacobi-scaled equilibrium rows of the free
-    coordinates, then the closure errors); ``r`` the unscaled residual, all rows.
+    coordinates, then the closure errors); ``r`` the unscaled residual, all rows,
+    followed by the contact penetrations (none without contact), whose Jacobian
+    bounds the Newton steps.
     Prescribed coordinates take the values ``q_p`` (``Linkage.prescribed`` order).
     """
     free = free_coordinates(linkage)
@@ -139,8 +143,10 @@ def scaled_equilibrium(linkage: Linkage, data: LinkageData, x, t, lam, u, q_p):
     if len(qi):
         q = q.at[qi].set(q_p)
     mu = x[nf:] if linkage.n_constraints else None
-    r, e = _residual_and_closure(linkage, data, q, t, lam, u, mu)
-    return jnp.concatenate([_row_scale(data.K)[free] * r[free], e]), r
+    r, e, d = _residual_and_closure(linkage, data, q, t, lam, u, mu)
+    return jnp.concatenate([_row_scale(data.K)[free] * r[free], e]), jnp.concatenate(
+        [r, d]
+    )
 
 
 def _closure_converted(fn, *inputs):
@@ -236,6 +242,7 @@ def _newton(
     n_mult=0,
     max_step=jnp.inf,
     regularise=False,
+    contact_rows=None,
 ):
     """Newton's method over load increments lambda = k / n, k = 1 .. n, one loop.
 
@@ -260,7 +267,12 @@ def _newton(
     a clamped-clamped rod it jumped to the straight, unstable equilibrium. No
     coordinate moves by more than ``max_step`` per iteration (the step is scaled
     down, its direction kept). With ``regularise`` (contact scenes) a singular
-    Jacobian takes a Levenberg-shifted step instead of failing.
+    Jacobian takes a Levenberg-shifted step instead of failing. ``contact_rows =
+    (start, depth)``: ``aux[start:]`` are contact penetrations d, and a step is
+    shortened so that, by its linear prediction, no contact ends deeper than
+    ``max(depth, 2 d)`` (a free body does not jump through what it touches, nor
+    a just-touching rod through a thin one; a contact that must go deeper doubles
+    its penetration per iteration).
 
     Returns ``(x, f, aux, (J, J_aux), steps, status)`` (``J_aux = daux/dx``), status
     0 converged, 1 out of steps, 2 non-finite values, 3 failed linear solve.
@@ -341,13 +353,21 @@ def _newton(
             Jf = jnp.where(finite, J, 0.0)
             shift = 1e-9 * jnp.maximum(jnp.max(jnp.abs(Jf)), 1.0)
             dx_reg = jnp.linalg.solve(
-                Jf + shift * jnp.eye(Jf.shape[0], dtype=dtype), jnp.where(finite, f, 0.0)
+                Jf + shift * jnp.eye(Jf.shape[0], dtype=dtype),
+                jnp.where(finite, f, 0.0),
             )
             dx = jnp.where(bad, dx_reg, dx)
         dx = dx / jnp.maximum(jnp.max(jnp.abs(dx[:n_eq]), initial=0.0) / max_step, 1.0)
-        solved = (
-            (sol.result == lx.RESULTS.successful) | regularise
-        ) & jnp.all(jnp.isfinite(dx))
+        if contact_rows is not None:
+            start, depth = contact_rows
+            d = jnp.where(jnp.isfinite(aux[start:]), aux[start:], 0.0)
+            deeper = -(jnp.where(finite, J_aux[start:], 0.0) @ dx)
+            room = jnp.maximum(depth, 2.0 * d) - d  # > 0
+            ratio = jnp.where(deeper > 0, deeper / room, 0.0)
+            dx = dx / jnp.maximum(jnp.max(ratio, initial=0.0), 1.0)
+        solved = ((sol.result == lx.RESULTS.successful) | regularise) & jnp.all(
+            jnp.isfinite(dx)
+        )
         dx_small = jnp.max(jnp.abs(dx) / (tol_a + tol_r * jnp.abs(x)), initial=0.0) <= 1
         f_small = jnp.max(jnp.abs(f), initial=0.0) <= tol_a
         # Final increment: converged when the residual here is within atol and so is
@@ -453,6 +473,16 @@ def _solve_statics(
 
     x0 = jnp.concatenate([q0[free], jnp.zeros(n_c, q0.dtype)])
     args = (data, u, dyn, q_p0, t)
+    # no Newton step makes a contact deeper than this (or twice its depth)
+    contact_cap = (
+        None
+        if linkage.contact is None
+        else jnp.maximum(
+            10.0 * linkage.contact.law.smoothing,
+            1e-3 * smallest_radius(linkage),
+        )
+    )
+    contact_cap = jax.lax.stop_gradient(contact_cap)
     one = jnp.ones((), q0.dtype)
 
     def n_inc_of(f_full_load):
@@ -482,6 +512,7 @@ def _solve_statics(
             n_mult=n_c,
             max_step=load_increment,
             regularise=linkage.contact is not None,
+            contact_rows=None if linkage.contact is None else (n, contact_cap),
         )
         result = RESULTS.where(
             status == 0,

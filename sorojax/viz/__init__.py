@@ -1,6 +1,7 @@
 """Plots of linkage configurations (matplotlib, imported only when a plot is made).
 
-``plot_configuration`` (alias ``plotq``) draws any configuration in 3D;
+``plot_configuration`` (alias ``plotq``) draws any configuration in 3D, with the
+contact obstacles and optionally the contact forces;
 ``plot_reference`` (alias ``plotq0``) draws q = 0 with the coordinate frames;
 ``animate`` (the manual's ``plotqqd``) writes a video of a trajectory and
 ``plot_time_series`` plots its coordinates, tip position or energies against time;

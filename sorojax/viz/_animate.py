@@ -1,7 +1,8 @@
 """Animations and time plots of a simulated trajectory (the manual's ``plotqqd``).
 
 ``animate`` draws the linkage with :func:`~sorojax.viz.plot_configuration` at every
-video frame and writes an mp4 (matplotlib's ffmpeg writer) or a GIF (Pillow);
+video frame (with its contact obstacles where they are at that time, and optionally
+the contact forces) and writes an mp4 (matplotlib's ffmpeg writer) or a GIF (Pillow);
 ``plot_time_series`` plots coordinates, velocities, the tip position or the energies
 against time. Matplotlib is imported only inside the functions.
 """
@@ -16,7 +17,19 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..io._files import as_path, check_target, writing
-from ._plot import _set_equal_limits, plot_configuration, section_extents
+from ._plot import (
+    _active_contacts,
+    _check_force_scale,
+    _default_force_scale,
+    _draw_contact_forces,
+    _draw_obstacles,
+    _largest_extent,
+    _plane_points,
+    _scene_points,
+    _set_equal_limits,
+    plot_configuration,
+    section_extents,
+)
 
 VIDEO_SUFFIXES = (".mp4", ".gif")
 """Suffixes :func:`animate` writes: ``.mp4`` needs ffmpeg, ``.gif`` uses Pillow."""
@@ -144,6 +157,8 @@ def animate(
     figsize: tuple[float, float] = (6.4, 4.8),
     dpi: float = 100,
     view: tuple[float, float] | None = None,
+    obstacles: bool = True,
+    contact_forces: bool | float = False,
     **plot_kwargs,
 ) -> pathlib.Path:
     """Write a video of a trajectory (the manual's ``plotqqd``).
@@ -154,6 +169,13 @@ def animate(
     trajectory saved over ``[t0, t1]``. The axis limits are fixed and hold the whole
     motion; the title shows the time. States after a failed integration (non-finite)
     are left out with a warning.
+
+    A linkage with contact is drawn with its obstacles, a moving obstacle where it is
+    at the frame's time; planes are squares sized once from the whole motion (the
+    linkage and the finite obstacles in every frame), as in
+    :func:`~sorojax.viz.plot_configuration`. ``contact_forces`` draws the forces of
+    :func:`~sorojax.contact_state` at each frame's ``q``, ``qd`` (both interpolated
+    linearly) and time, at the active contacts, with one scale for the whole video.
 
     The format follows the suffix: ``.mp4`` through matplotlib's ffmpeg writer, or
     ``.gif`` through Pillow. If ``.mp4`` is asked for and ffmpeg is not available to
@@ -174,16 +196,23 @@ def animate(
         dpi: resolution [dots per inch]; the frames are ``figsize * dpi`` pixels.
         view: ``(elev, azim)`` camera angles [deg] of the 3D axes, or None for
             matplotlib's default.
+        obstacles: draw the obstacles of ``linkage.contact`` (if it has contact).
+        contact_forces: draw the contact forces: False (none), True (the largest
+            arrow of the video is 20 % of the largest extent of the motion and the
+            obstacles) or a scale [m/N].
         **plot_kwargs: options of :func:`~sorojax.viz.plot_configuration`
             (``frames``, ``frame_scale``, ``n_circle``, ``show_points``, ``color``,
-            ``n_sub``).
+            ``n_sub``; not ``ax``, ``t`` or ``qd``, which animate sets).
 
     Returns:
         The path of the file written (``.gif`` in place of ``.mp4`` without ffmpeg).
 
     Raises:
         ValueError: unknown suffix; ``fps`` or ``speed`` not positive; ``traj`` not
-            a single trajectory, unsorted or with a non-finite first state.
+            a single trajectory, unsorted or with a non-finite first state;
+            ``contact_forces`` asked of a linkage without contact, or neither a bool
+            nor a scale > 0.
+        TypeError: ``plot_kwargs`` holds ``ax``, ``t`` or ``qd``.
         FileExistsError: the file exists and ``overwrite`` is False.
         FileNotFoundError: the folder of ``path`` does not exist.
     """
@@ -198,6 +227,13 @@ def animate(
         raise TypeError(
             "animate draws into its own figure: remove ax (use figsize, dpi, view)."
         )
+    for name in ("t", "qd"):
+        if name in plot_kwargs:
+            raise TypeError(
+                f"animate sets {name} at every frame from the trajectory: remove "
+                f"{name}."
+            )
+    _check_force_scale(contact_forces)
     target, writer_name = _video_target(path, overwrite)
     check_target(target, overwrite)
 
@@ -209,13 +245,42 @@ def animate(
         # Same arrow length in every frame (plot_configuration's default scales
         # with the drawing, which changes as the linkage moves).
         plot_kwargs["frame_scale"] = 0.1 * float((bounds[1] - bounds[0]).max())
+    # One scene for the whole video: the planes' squares, the force scale and the
+    # axis limits stay put while the linkage and the obstacles move.
+    scene = _scene_points(linkage, bounds, tf) if obstacles else bounds
+    pts = [scene]
+    if obstacles:
+        pts.append(_plane_points(linkage, scene, tf))
+    contacts = []
+    if contact_forces is not False:
+        qd = getattr(traj, "qd", None)
+        qdf = None if qd is None else _interpolate_q(t, np.asarray(qd)[: len(t)], tf)
+        contacts = [
+            _active_contacts(linkage, qf[k], None if qdf is None else qdf[k], tf[k])
+            for k in range(len(tf))
+        ]
+        scale = (
+            _default_force_scale(
+                np.concatenate([f for _, f in contacts]), _largest_extent(scene)
+            )
+            if contact_forces is True
+            else float(contact_forces)
+        )
+        pts += [p + scale * f for p, f in contacts]
+    pts = np.concatenate(pts)
+    bounds = np.stack([pts.min(axis=0), pts.max(axis=0)])
 
     fig = plt.figure(figsize=figsize, dpi=dpi)
     ax = fig.add_subplot(projection="3d")
 
     def draw(k: int):
         ax.cla()
-        plot_configuration(linkage, qf[k], ax, **plot_kwargs)
+        plot_configuration(linkage, qf[k], ax, obstacles=False, **plot_kwargs)
+        if obstacles:
+            n_circle = plot_kwargs.get("n_circle", 18)
+            _draw_obstacles(ax, linkage, scene, t=float(tf[k]), n_circle=n_circle)
+        if contacts:
+            _draw_contact_forces(ax, *contacts[k], scale)
         _set_equal_limits(ax, bounds)
         if view is not None:
             ax.view_init(elev=view[0], azim=view[1])

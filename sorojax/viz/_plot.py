@@ -20,10 +20,24 @@ geometry it was built from, so that programs and tests can inspect what was draw
   (two rings, at the two ends of the body);
 - ``"sorojax-frames-x"``, ``"-y"``, ``"-z"``: the frame arrows (quivers), with
   ``sorojax_origins`` and ``sorojax_vectors`` (``(n_frames, 3)`` each);
-- ``"sorojax-points"``: the significant points (``show_points=True``).
+- ``"sorojax-points"``: the significant points (``show_points=True``);
+- ``"sorojax-obstacle{k}"``: obstacle ``k`` (0-based, the index in
+  ``linkage.contact.obstacles`` and :attr:`~sorojax.ContactState.obstacle`): a
+  translucent square (``Plane``), a translucent surface (``Sphere``, ``Capsule``), both
+  ``Poly3DCollection``, or the 12 edges of a ``Box`` (a ``Line3DCollection``), with
+  ``sorojax_kind`` (``"plane"``, ``"sphere"``, ``"capsule"`` or ``"box"``),
+  ``sorojax_pose`` (``(4, 4)`` world pose of the obstacle frame at the time drawn) and
+  ``sorojax_points`` (world points it was built from: the plane's 4 corners, the
+  surface's ``(n_rings, n_circle, 3)`` rings, the box's 8 corners);
+- ``"sorojax-contact-forces"``: the contact forces of the active contacts (a quiver),
+  with ``sorojax_origins`` (contact points), ``sorojax_forces`` [N] and
+  ``sorojax_vectors`` (drawn arrows, ``sorojax_scale`` [m/N] times the forces), each
+  ``(n_active, 3)``.
 """
 
+import itertools
 import math
+import numbers
 
 import numpy as np
 
@@ -32,6 +46,14 @@ from ..model._link import RigidLink, SoftLink
 from ..model._section import RectangularSection
 
 _FRAME_COLORS = ("tab:red", "tab:green", "tab:blue")
+_OBSTACLE_COLOR = "0.55"
+_OBSTACLE_EDGE_COLOR = "0.3"
+_PLANE_ALPHA = 0.2  # translucent, so that a rod resting on it stays visible
+_SURFACE_ALPHA = 0.35
+_FORCE_COLOR = "tab:red"
+FORCE_ARROW_FRACTION = 0.2
+"""Default contact-force scale: the largest arrow is this fraction of the scene's
+largest extent."""
 
 
 # --------------------------------------------------------------------------- helpers
@@ -231,6 +253,286 @@ def _prepare_axes(ax):
     return ax.figure, ax, prev
 
 
+# ------------------------------------------------------- obstacles and contact forces
+def _largest_extent(pts: np.ndarray) -> float:
+    """Largest side of the bounding box of ``pts`` [m]; 1 for a single point."""
+    span = float((pts.max(axis=0) - pts.min(axis=0)).max())
+    return span if span > 0 else 1.0
+
+
+def _obstacle_pose(obstacle, t: float = 0.0) -> np.ndarray:
+    """World pose ``(4, 4)`` of an obstacle's frame at time ``t`` [s] (NumPy)."""
+    return np.asarray(obstacle.frame(float(t))[0], dtype=float)
+
+
+def _to_world(G: np.ndarray, x) -> np.ndarray:
+    """Points ``x`` (..., 3) of the obstacle frame ``G`` in the world."""
+    return np.asarray(x, dtype=float) @ G[:3, :3].T + G[:3, 3]
+
+
+def _perpendicular_axes(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors ``u, v`` with ``(u, v, a)`` a right-handed orthonormal frame."""
+    e = np.zeros(3)
+    e[int(np.argmin(np.abs(a)))] = 1.0  # the world axis least aligned with a
+    u = np.cross(a, e)
+    u /= np.linalg.norm(u)
+    return u, np.cross(a, u)
+
+
+def _box_corners(G: np.ndarray, half_extents) -> np.ndarray:
+    """The 8 corners ``(8, 3)`` (world) of a box at pose ``G``.
+
+    In ``itertools.product((-1, 1), repeat=3)`` order of the signs along the box's
+    x, y, z.
+    """
+    signs = np.array(list(itertools.product((-1.0, 1.0), repeat=3)))
+    return _to_world(G, signs * np.asarray(half_extents, dtype=float))
+
+
+_BOX_EDGES = tuple(
+    (i, j) for i in range(8) for j in range(i + 1, 8) if bin(i ^ j).count("1") == 1
+)  # corners that differ in one sign: the 12 edges
+
+
+def _capsule_rings(
+    start: np.ndarray, end: np.ndarray, radius: float, n_circle: int
+) -> np.ndarray:
+    """Rings ``(n_rings, n_circle, 3)`` of a capsule's surface (world).
+
+    A hemisphere about ``end`` from its pole to the equator, then one about ``start``
+    from the equator to its pole (a sphere if ``start == end``): the quadrilaterals
+    between consecutive rings cover the surface, the cylinder being the band between
+    the two equators.
+    """
+    axis = end - start
+    length = float(np.linalg.norm(axis))
+    a = axis / length if length > 0 else np.array([0.0, 0.0, 1.0])
+    u, v = _perpendicular_axes(a)
+    theta = 2.0 * np.pi * np.arange(n_circle) / n_circle
+    around = np.cos(theta)[:, None] * u + np.sin(theta)[:, None] * v
+    m = max(2, n_circle // 4)  # latitude steps per hemisphere
+    phi = np.linspace(0.0, 0.5 * np.pi, m + 1)
+    rings = [end + radius * (np.cos(p) * a + np.sin(p) * around) for p in phi]
+    # A sphere's two equators coincide: start the second hemisphere one step down.
+    phi2 = np.linspace(0.5 * np.pi, np.pi, m + 1)[0 if length > 0 else 1 :]
+    rings += [start + radius * (np.cos(p) * a + np.sin(p) * around) for p in phi2]
+    return np.stack(rings)
+
+
+def _finite_obstacle_points(obstacle, G: np.ndarray) -> np.ndarray | None:
+    """World points bounding a finite obstacle at pose ``G`` (None for a plane)."""
+    from ..model._contact import Box, Capsule, Sphere
+
+    if isinstance(obstacle, Sphere):
+        r = _scalar(obstacle.radius)
+        return _box_corners(np.eye(4), (r, r, r)) + _to_world(G, obstacle.centre)
+    if isinstance(obstacle, Capsule):
+        r = _scalar(obstacle.radius)
+        ends = _to_world(G, np.stack([obstacle.start, obstacle.end]))
+        cube = _box_corners(np.eye(4), (r, r, r))
+        return np.concatenate([cube + ends[0], cube + ends[1]])
+    if isinstance(obstacle, Box):
+        return _box_corners(G, obstacle.half_extents)
+    return None
+
+
+_SQUARE = ((1.0, 1.0), (-1.0, 1.0), (-1.0, -1.0), (1.0, -1.0))
+
+
+def _plane_corners(obstacle, G: np.ndarray, scene: np.ndarray) -> np.ndarray:
+    """Corners ``(4, 3)`` of the square drawn for a plane at pose ``G``.
+
+    Its side is the largest extent of the ``scene`` points (world) and its centre
+    the projection of theirs onto the plane.
+    """
+    n = G[:3, :3] @ np.asarray(obstacle.normal, dtype=float)
+    p0 = _to_world(G, obstacle.point)
+    c = 0.5 * (scene.min(axis=0) + scene.max(axis=0))
+    c = c - float((c - p0) @ n) * n
+    h = 0.5 * _largest_extent(scene)
+    u, v = _perpendicular_axes(n)
+    return np.stack([c + h * (su * u + sv * v) for su, sv in _SQUARE])
+
+
+def _scene_points(linkage, pts: np.ndarray, times=(0.0,)) -> np.ndarray:
+    """``pts`` and the bounding points of the finite obstacles at ``times`` [s].
+
+    Spheres, capsules and boxes of ``linkage.contact`` add the corners of boxes that
+    hold them (planes are unbounded); a static obstacle is taken once.
+    """
+    contact = getattr(linkage, "contact", None)
+    if contact is None:
+        return pts
+    moving = any(ob.motion is not None for ob in contact.obstacles)
+    out = [pts]
+    for t in times if moving else tuple(times)[:1]:
+        for ob in contact.obstacles:
+            p = _finite_obstacle_points(ob, _obstacle_pose(ob, t))
+            if p is not None:
+                out.append(p)
+    return np.concatenate(out)
+
+
+def _plane_points(linkage, scene: np.ndarray, times=(0.0,)) -> np.ndarray:
+    """Corners ``(n, 3)`` of the squares drawn for the planes at ``times`` [s].
+
+    Sized and centred from the ``scene`` points as in :func:`_plane_corners`; a
+    static plane is taken once.
+    """
+    from ..model._contact import Plane
+
+    contact = getattr(linkage, "contact", None)
+    out = [np.zeros((0, 3))]
+    for ob in contact.obstacles if contact is not None else ():
+        if isinstance(ob, Plane):
+            ts = times if ob.motion is not None else tuple(times)[:1]
+            out += [_plane_corners(ob, _obstacle_pose(ob, t), scene) for t in ts]
+    return np.concatenate(out)
+
+
+def _draw_obstacles(ax, linkage, scene: np.ndarray, *, t: float = 0.0, n_circle=18):
+    """Draw the linkage's obstacles at time ``t`` [s] into the 3D axes ``ax``.
+
+    Planes are translucent squares of side the largest extent of the ``scene``
+    points (``(n, 3)``, world [m]) centred at the projection of their centre onto
+    the plane, spheres and capsules
+    translucent surfaces with ``n_circle`` points around, boxes their 12 edges. The
+    artists carry the gids and attributes listed in this module's docstring.
+
+    Returns:
+        The world points drawn, ``(n, 3)``, to widen the axis limits with.
+    """
+    from mpl_toolkits.mplot3d import art3d
+
+    from ..model._contact import Box, Capsule, Plane, Sphere
+
+    contact = getattr(linkage, "contact", None)
+    drawn = [np.zeros((0, 3))]
+    for k, ob in enumerate(contact.obstacles if contact is not None else ()):
+        G = _obstacle_pose(ob, t)
+        if isinstance(ob, Plane):
+            kind, points = "plane", _plane_corners(ob, G, scene)
+            art = art3d.Poly3DCollection(
+                [points], facecolors=_OBSTACLE_COLOR, alpha=_PLANE_ALPHA
+            )
+            art.set_edgecolor(_OBSTACLE_EDGE_COLOR)
+            art.set_linewidth(0.5)
+            ax.add_collection3d(art)
+        elif isinstance(ob, Sphere | Capsule):
+            r = _scalar(ob.radius)
+            if isinstance(ob, Sphere):
+                kind = "sphere"
+                start = end = _to_world(G, ob.centre)
+            else:
+                kind = "capsule"
+                start, end = _to_world(G, ob.start), _to_world(G, ob.end)
+            points = _capsule_rings(start, end, r, n_circle)
+            art = art3d.Poly3DCollection(
+                _tube_polygons(points, cap_start=False, cap_end=False),
+                facecolors=_OBSTACLE_COLOR,
+                alpha=_SURFACE_ALPHA,
+                shade=True,
+            )
+            art.set_edgecolor("none")
+            art.set_linewidth(0.0)
+            ax.add_collection3d(art)
+        elif isinstance(ob, Box):
+            kind, points = "box", _box_corners(G, ob.half_extents)
+            art = art3d.Line3DCollection(
+                [points[[i, j]] for i, j in _BOX_EDGES],
+                colors=_OBSTACLE_EDGE_COLOR,
+                linewidths=1.0,
+            )
+            ax.add_collection3d(art)
+        else:
+            continue
+        art.set_gid(f"sorojax-obstacle{k}")
+        art.sorojax_kind = kind
+        art.sorojax_pose = G
+        art.sorojax_points = points
+        drawn.append(points.reshape(-1, 3))
+    return np.concatenate(drawn)
+
+
+def _check_force_scale(contact_forces) -> None:
+    """Refuse a ``contact_forces`` that is neither a bool nor a positive scale."""
+    if isinstance(contact_forces, bool):
+        return
+    if not (
+        isinstance(contact_forces, numbers.Real)
+        and math.isfinite(contact_forces)
+        and contact_forces > 0
+    ):
+        raise ValueError(
+            f"contact_forces = {contact_forces!r}: give True (largest arrow "
+            f"{FORCE_ARROW_FRACTION:.0%} of the scene), False, or a scale > 0 [m/N]."
+        )
+
+
+def _active_contacts(linkage, q, qd=None, t: float = 0.0):
+    """Points and forces of the active contacts at ``(q, qd, t)``.
+
+    From :func:`~sorojax.contact_state`: the rows with penetration > 0.
+
+    Returns:
+        ``(points (n_active, 3) [m], forces (n_active, 3) [N])``, world frame.
+
+    Raises:
+        ValueError: the linkage has no contact.
+    """
+    from ..dynamics._contact import contact_state
+
+    if getattr(linkage, "contact", None) is None:
+        raise ValueError(
+            "contact_forces: this linkage has no contact to draw; give "
+            "Linkage(contact=sorojax.Contact(...)) or contact_forces=False."
+        )
+    cs = contact_state(linkage, q, qd, t)
+    active = np.asarray(cs.active)
+    return (
+        np.asarray(cs.point, dtype=float)[active],
+        np.asarray(cs.force, dtype=float)[active],
+    )
+
+
+def _draw_contact_forces(ax, points: np.ndarray, forces: np.ndarray, scale: float):
+    """Quiver of ``scale`` [m/N] times ``forces`` at ``points`` (nothing if empty).
+
+    Returns:
+        The arrow tips ``(n, 3)`` [m], to widen the axis limits with.
+    """
+    if len(points) == 0:
+        return np.zeros((0, 3))
+    d = scale * forces
+    qv = ax.quiver(
+        points[:, 0],
+        points[:, 1],
+        points[:, 2],
+        d[:, 0],
+        d[:, 1],
+        d[:, 2],
+        color=_FORCE_COLOR,
+        arrow_length_ratio=0.2,
+        linewidths=1.5,
+    )
+    qv.set_gid("sorojax-contact-forces")
+    qv.sorojax_origins = points
+    qv.sorojax_forces = forces
+    qv.sorojax_vectors = d
+    qv.sorojax_scale = float(scale)
+    return points + d
+
+
+def _default_force_scale(forces: np.ndarray, extent: float) -> float:
+    """Scale [m/N] that draws the largest force as a fraction of ``extent``.
+
+    The largest of ``forces`` ``(n, 3)`` [N] becomes an arrow of
+    :data:`FORCE_ARROW_FRACTION` times ``extent`` [m]; 1 if there is no force.
+    """
+    fmax = float(np.linalg.norm(forces, axis=1).max()) if len(forces) else 0.0
+    return FORCE_ARROW_FRACTION * extent / fmax if fmax > 0 else 1.0
+
+
 # ------------------------------------------------------------------------------ API
 def plot_configuration(
     linkage,
@@ -244,6 +546,10 @@ def plot_configuration(
     color=None,
     n_sub: int = 3,
     poses=None,
+    obstacles: bool = True,
+    contact_forces: bool | float = False,
+    qd=None,
+    t: float = 0.0,
 ):
     """Plot a configuration of a linkage in 3D (the manual's ``plotq``).
 
@@ -252,6 +558,15 @@ def plot_configuration(
     section drawn in the CM frame from x = -L/2 to +L/2. Axes are in metres with equal
     scale in all directions. Plotting again into the same ``ax`` widens the limits to
     hold both drawings.
+
+    A linkage with contact (``linkage.contact``) is drawn with its obstacles at time
+    ``t``: a plane as a translucent square whose side is the scene's largest extent
+    (the linkage, the earlier drawings in ``ax`` and the finite obstacles), centred at
+    the projection of the scene's centre onto the plane; a sphere or capsule as a
+    translucent surface; a box as its 12 edges. ``contact_forces`` adds the forces of
+    :func:`~sorojax.contact_state` at ``(q, qd, t)`` as arrows (red) at the active
+    contacts' points (penetration > 0; inactive contacts are not drawn), along the
+    force on the robot (for a rod-rod pair, on its first link).
 
     Args:
         linkage: the :class:`~sorojax.Linkage`.
@@ -269,13 +584,22 @@ def plot_configuration(
             significant points only.
         poses: ``forward_kinematics(linkage, q)`` if already at hand (it is then
             not computed again), shape ``(n_points, 4, 4)``.
+        obstacles: draw the obstacles of ``linkage.contact`` (if it has contact).
+        contact_forces: draw the contact forces: False (none), True (scaled so that
+            the largest arrow is 20 % of the scene's largest extent) or a scale
+            [m/N] (arrow length per newton).
+        qd: velocities ``(n_dof,)`` for the contact forces (damping and friction);
+            default None (zero velocities: the elastic normal forces only).
+        t: time [s] at which moving obstacles are drawn and the contact forces
+            evaluated.
 
     Returns:
         ``(fig, ax)``.
 
     Raises:
-        ValueError: ``ax`` is not a 3D axes, ``n_circle < 3`` or ``n_sub < 1``, or
-            ``q`` or ``poses`` has the wrong shape.
+        ValueError: ``ax`` is not a 3D axes, ``n_circle < 3`` or ``n_sub < 1``,
+            ``q`` or ``poses`` has the wrong shape, or ``contact_forces`` is asked of
+            a linkage without contact or is not a bool or a scale > 0.
     """
     from mpl_toolkits.mplot3d import art3d
 
@@ -286,6 +610,9 @@ def plot_configuration(
     if int(n_sub) < 1:
         raise ValueError(f"n_sub = {n_sub!r}: give an integer >= 1.")
     n_circle, n_sub = int(n_circle), int(n_sub)
+    _check_force_scale(contact_forces)
+    if contact_forces is not False:
+        contact_points, forces = _active_contacts(linkage, q, qd, t)
     if poses is None:
         g = np.asarray(forward_kinematics(linkage, q), dtype=float)
     else:
@@ -354,7 +681,25 @@ def plot_configuration(
     pts = np.concatenate(pts)
     if prev is not None:
         pts = np.concatenate([pts, prev])
+    if obstacles:
+        # The scene sizes the planes' squares and the default force arrows.
+        pts = _scene_points(linkage, pts, (t,))
+        scene_extent = _largest_extent(pts)
+        pts = np.concatenate(
+            [pts, _draw_obstacles(ax, linkage, pts, t=t, n_circle=n_circle)]
+        )
+    else:
+        scene_extent = _largest_extent(pts)
     span = float((pts.max(axis=0) - pts.min(axis=0)).max())
+
+    if contact_forces is not False:
+        scale = (
+            _default_force_scale(forces, scene_extent)
+            if contact_forces is True
+            else float(contact_forces)
+        )
+        tips = _draw_contact_forces(ax, contact_points, forces, scale)
+        pts = np.concatenate([pts, tips])
 
     if frames:
         scale = frame_scale

@@ -1,0 +1,301 @@
+"""Contact: reactions, penetration law, friction on an incline, dissipation, rod-rod.
+
+Each scene is small (a few coordinates, tens of samples) and compiled once per module.
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import sorojax as sj
+from sorojax.dynamics._contact import segment_closest
+
+G = 9.81
+
+
+def _pose(z=0.0, R=None):
+    g = np.eye(4)
+    if R is not None:
+        g[:3, :3] = R
+    g[2, 3] = z
+    return g
+
+
+# ----------------------------------------------------------------- rod on the floor
+R_ROD, L_ROD, RHO = 0.01, 0.3, 1000.0
+W_LINE = RHO * np.pi * R_ROD**2 * G  # weight per length [N/m]
+
+
+def floor_rod(rho=RHO, stiffness=1e5):
+    """A stiff rod free to move vertically (prismatic z), lying on a floor."""
+    rod = sj.SoftLink(
+        [
+            sj.Division(
+                L_ROD,
+                sj.CircularSection(R_ROD),
+                sj.LegendreBasis((0, 1, 1, 0, 0, 0), 1),
+            )
+        ],
+        sj.Material(E=1e9, poisson=0.5, rho=rho),
+        joint=sj.Joint("P", axis=(0, 0, 1)),
+    )
+    law = sj.ContactLaw(stiffness=stiffness, smoothing=1e-6)
+    return sj.Linkage(
+        [rod],
+        placements=_pose(R_ROD)[None],
+        gravity=(0, 0, -G),
+        contact=sj.Contact(sj.Plane(), law, spacing=0.03),
+    )
+
+
+@pytest.fixture(scope="module")
+def floor_solution():
+    lk = floor_rod()
+    return lk, sj.solve_statics(lk)
+
+
+def test_floor_reaction_equals_weight(floor_solution):
+    lk, sol = floor_solution
+    cs = sj.contact_state(lk, sol.q)
+    weight = W_LINE * L_ROD
+    # statics: the reaction balances the weight up to the solver's tolerance (1e-10)
+    np.testing.assert_allclose(float(cs.total_force()[2]), weight, rtol=1e-6)
+    assert np.all(np.asarray(cs.obstacle) == 0) and cs.point.shape[0] == 11
+
+
+def test_floor_penetration_follows_the_law(floor_solution):
+    lk, sol = floor_solution
+    cs = sj.contact_state(lk, sol.q)
+    predicted = float(lk.contact.law.penetration(jnp.asarray(W_LINE)))
+    d = np.asarray(cs.penetration)
+    w = np.full(d.size, 1.0)
+    w[0] = w[-1] = 0.5  # the samples' lengths (trapezoid cells)
+    # past the smoothing depth the law is linear: the length-weighted mean
+    # penetration carries the weight per length exactly
+    np.testing.assert_allclose(np.sum(w * d) / np.sum(w), predicted, rtol=1e-6)
+    # the rod bends slightly where the sampled support and the Gauss-point weight
+    # differ (second order in the sample spacing): 1 % of the penetration here
+    np.testing.assert_allclose(d, predicted, rtol=0.02)
+    # the joint coordinate is the rod's drop at its base: minus the penetration
+    np.testing.assert_allclose(float(sol.q[0]), -d[0], rtol=1e-9)
+
+
+def test_floor_gradient_matches_finite_differences(floor_solution):
+    """d(drop)/d(density) through the statics with contact (implicit derivative)."""
+
+    def drop(rho):
+        return sj.solve_statics(floor_rod(rho)).q[0]
+
+    g = jax.grad(drop)(RHO)
+    h = 1.0
+    fd = (drop(RHO + h) - drop(RHO - h)) / (2 * h)
+    # the law is linear past the smoothing depth: central differences exact to ~1e-9
+    np.testing.assert_allclose(float(g), float(fd), rtol=1e-5)
+    # and the law's own derivative: drop = -(w / k + delta / 2), w = rho pi r^2 g,
+    # up to the slight bending at the base (0.2 %, see the penetration test)
+    np.testing.assert_allclose(float(g), -np.pi * R_ROD**2 * G / 1e5, rtol=1e-2)
+
+
+# ------------------------------------------------------------------ inclined plane
+MU = 0.5
+HALF = np.array([0.02, 0.02, 0.01])
+MASS = 0.1
+
+
+def incline(alpha):
+    """A rigid block (free joint, box contact shape) resting on a plane at alpha."""
+    n = np.array([-np.sin(alpha), 0.0, np.cos(alpha)])
+    c, s = np.cos(alpha), np.sin(alpha)
+    R = np.array([[c, 0, -s], [0, 1, 0], [s, 0, c]])  # block x along the slope
+    place = np.eye(4)
+    place[:3, :3] = R
+    place[:3, 3] = n * HALF[2]
+    block = sj.RigidLink(
+        sj.Joint("F"), length=0.04, mass=MASS, inertia=np.diag([1e-5] * 3),
+        g_i=np.eye(4), g_f=np.eye(4),
+    )  # fmt: skip
+    law = sj.ContactLaw(
+        stiffness=1e4, smoothing=1e-5, damping=20.0, static_friction=MU,
+        stick_velocity=1e-3,
+    )  # fmt: skip
+    contact = sj.Contact(sj.Plane(normal=n), law, shapes={1: sj.ContactBox(HALF)})
+    return sj.Linkage(
+        [block], placements=place[None], gravity=(0, 0, -G), contact=contact
+    )
+
+
+def _downhill(lk, tr, alpha):
+    P = np.asarray(jax.vmap(lambda q: sj.forward_kinematics(lk, q)[1, :3, 3])(tr.q))
+    return (P - P[0]) @ np.array([-np.cos(alpha), 0.0, -np.sin(alpha)])
+
+
+@pytest.mark.parametrize("alpha_deg", [15.0, 35.0])
+def test_block_on_incline_sticks_or_slides(alpha_deg):
+    alpha = np.radians(alpha_deg)
+    lk = incline(alpha)
+    tr = sj.simulate(lk, 1.0, solver="tsit5", n_save=41, rtol=1e-6, atol=1e-9,
+                     max_steps=100_000)  # fmt: skip
+    s = _downhill(lk, tr, alpha)
+    if np.tan(alpha) < MU:
+        # friction angle 26.6 deg: held; it creeps at the regularisation's
+        # v_s r / sqrt(1 - r^2) = 0.63 mm/s (r = tan(alpha) / mu)
+        assert abs(s[-1]) < 1e-3, f"drift {s[-1]:.2e} m in 1 s below the friction angle"
+    else:
+        t = np.asarray(tr.t)
+        a = 2 * np.polyfit(t[20:], s[20:], 2)[0]
+        a_exact = G * (np.sin(alpha) - MU * np.cos(alpha))
+        # Coulomb sliding: mu is the kinetic one far above the Stribeck speed
+        np.testing.assert_allclose(a, a_exact, rtol=0.02)
+
+
+# ------------------------------------------------------- drop with contact damping
+def dropped_rod():
+    rod = sj.SoftLink(
+        [
+            sj.Division(
+                0.3, sj.CircularSection(0.01), sj.LegendreBasis((0, 1, 1, 0, 0, 0), 1)
+            )
+        ],
+        sj.Material(E=1e6, poisson=0.5, rho=1000.0, eta=1e3),
+        joint=sj.Joint("A", axis=(0, 1, 0)),
+    )
+    law = sj.ContactLaw(stiffness=1e4, smoothing=1e-4, damping=10.0)
+    return sj.Linkage(
+        [rod], placements=_pose(0.05)[None], gravity=(0, 0, -G),
+        contact=sj.Contact(sj.Plane(), law, spacing=0.02),
+    )  # fmt: skip
+
+
+def test_drop_energy_never_rises_and_rod_comes_to_rest():
+    lk = dropped_rod()
+    q0 = jnp.zeros(lk.n_dof).at[0].set(0.1)  # tilted: one end lands first
+    tr = sj.simulate(lk, 1.5, q0, solver="tsit5", n_save=151, rtol=1e-7, atol=1e-9)
+    E = np.asarray(jax.vmap(lambda q, qd: sj.total_energy(lk, q, qd))(tr.q, tr.qd))
+    # contact (penalty potential) + rod + gravity: damping only removes energy;
+    # the integrator's error at rtol 1e-7 is far below 1e-6 of E0
+    assert np.max(np.diff(E)) <= 1e-6 * abs(E[0]), (
+        f"energy rose by {np.max(np.diff(E)):.2e} J"
+    )
+    assert E[-1] < 0.5 * E[0]
+    cs = sj.contact_state(lk, tr.q[-1], tr.qd[-1])
+    weight = 1000.0 * np.pi * 0.01**2 * 0.3 * G
+    # at rest the floor carries the weight (residual motion after 1.5 s: < 1e-3)
+    np.testing.assert_allclose(float(cs.total_force()[2]), weight, rtol=1e-3)
+    assert float(jnp.max(jnp.abs(tr.qd[-1]))) < 1e-2
+
+
+# -------------------------------------------------------------------- crossing rods
+def crossing_rods(P):
+    """Rod 1 a cantilever along x; rod 2 along y, free to slide vertically (P joint),
+    pressed onto rod 1 by a downward force P at its middle."""
+    r = 0.01
+    basis = sj.LegendreBasis((0, 1, 1, 0, 0, 0), 2)
+    mat = sj.Material(E=1e7, poisson=0.5, rho=1000.0)
+    rod1 = sj.SoftLink([sj.Division(0.4, sj.CircularSection(r), basis)], mat)
+    rod2 = sj.SoftLink(
+        [sj.Division(0.2, sj.CircularSection(r), basis)],
+        mat,
+        joint=sj.Joint("P", axis=(0, 0, 1)),
+    )
+    g2 = np.eye(4)
+    g2[:3, :3] = np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1]])  # x along world y
+    g2[:3, 3] = [0.3, -0.1, 2 * r]
+    law = sj.ContactLaw(stiffness=1e5, smoothing=1e-6)
+    contact = sj.Contact((), law, rod_pairs=[(1, 2)], spacing=0.02)
+    return sj.Linkage(
+        [rod1, rod2], parents=(0, 0), placements=np.stack([np.eye(4), g2]),
+        point_wrenches=[sj.PointWrench(2, jnp.stack([0.0, 0, 0, 0, 0, -P]), division=1, X1=0.5)],
+        contact=contact,
+    )  # fmt: skip
+
+
+def test_crossing_rods_press_without_passing_through():
+    P = 0.5
+    lk = crossing_rods(P)
+    # one load step: the rods start just touching, and the contact's step limit
+    # brings them together (the automatic schedule does not converge here yet)
+    sol = sj.solve_statics(lk, load_steps=1)
+    cs = sj.contact_state(lk, sol.q)
+    # rod 2's joint carries no vertical force: the contact takes the whole load
+    # (rows are the forces on rod 1, pressed down)
+    np.testing.assert_allclose(float(jnp.sum(cs.force[:, 2])), -P, rtol=1e-6)
+    g = sj.forward_kinematics(lk, sol.q)
+    lay = lk.layout.links
+    z1 = float(g[lay[0].tip_point, 2, 3])
+    z2_mid = float(jnp.min(g[lay[1].divisions[0].first_point : lay[1].tip_point, 2, 3]))
+    assert z1 < -1e-3, "rod 1 should bend down under the load"
+    # centre lines stay two radii apart up to the penalty's penetration (P/k = 5e-6)
+    assert float(jnp.max(cs.penetration)) < 1e-4
+    assert z2_mid > z1 - 1e-3
+
+
+# --------------------------------------------------------------- kernels and input
+def test_segment_closest_points_match_brute_force():
+    rng = np.random.default_rng(0)
+    grid = np.linspace(0, 1, 401)
+    for _ in range(20):
+        p0, p1, q0, q1 = rng.normal(size=(4, 3))
+        s, u = segment_closest(*map(jnp.asarray, (p0, p1, q0, q1)))
+        A = p0 + np.outer(grid, p1 - p0)
+        B = q0 + np.outer(grid, q1 - q0)
+        D = np.linalg.norm(A[:, None] - B[None], axis=-1)
+        best = D.min()
+        got = np.linalg.norm((p0 + float(s) * (p1 - p0)) - (q0 + float(u) * (q1 - q0)))
+        # the grid's minimum is within its spacing's second-order error of the exact
+        assert best - 1e-3 <= got <= best + 1e-12
+
+
+@pytest.mark.parametrize(
+    "build, field",
+    [
+        (lambda: sj.ContactLaw(stiffness=-1.0), "ContactLaw.stiffness"),
+        (lambda: sj.ContactLaw(stiffness=1.0, smoothing=0.0), "ContactLaw.smoothing"),
+        (
+            lambda: sj.ContactLaw(stiffness=1.0, static_friction=-0.1),
+            "ContactLaw.static_friction",
+        ),
+        (lambda: sj.ContactLaw(stiffness=1.0, damping=-1.0), "ContactLaw.damping"),
+        (
+            lambda: sj.ContactLaw(stiffness=1.0, stick_velocity=0.0),
+            "ContactLaw.stick_velocity",
+        ),
+        (lambda: sj.Sphere(0.0), "Sphere.radius"),
+        (lambda: sj.Capsule(-0.1), "Capsule.radius"),
+        (lambda: sj.Box((0.1, 0.0, 0.1)), "Box.half_extents"),
+        (lambda: sj.Plane(normal=(0, 0, 0)), "Plane.normal"),
+        (lambda: sj.ContactSphere(-1.0), "ContactSphere.radius"),
+        (lambda: sj.Contact(sj.Plane()), "Contact.law"),
+        (lambda: sj.Contact("floor", sj.ContactLaw(1.0)), "Contact.obstacles"),
+        (
+            lambda: sj.Contact(sj.Plane(), sj.ContactLaw(1.0), spacing=0.0),
+            "Contact.spacing",
+        ),
+        (
+            lambda: sj.Linkage(
+                [floor_rod().links[0]],
+                contact=sj.Contact(sj.Plane(), sj.ContactLaw(1.0), links=[3]),
+            ),
+            "Contact.links",
+        ),
+        (
+            lambda: sj.Linkage(
+                [floor_rod().links[0]],
+                contact=sj.Contact((), sj.ContactLaw(1.0), rod_pairs=[(1, 1)]),
+            ),
+            "Contact.rod_pairs",
+        ),
+        (
+            lambda: sj.Linkage(
+                [floor_rod().links[0]],
+                contact=sj.Contact(
+                    (), sj.ContactLaw(1.0), shapes={1: sj.ContactSphere(0.1)}
+                ),
+            ),
+            "Contact.shapes",
+        ),
+    ],
+)
+def test_bad_contact_input_names_the_field(build, field):
+    with pytest.raises(ValueError, match=field.replace(".", r"\.")):
+        build()
