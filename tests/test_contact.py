@@ -299,3 +299,47 @@ def test_segment_closest_points_match_brute_force():
 def test_bad_contact_input_names_the_field(build, field):
     with pytest.raises(ValueError, match=field.replace(".", r"\.")):
         build()
+
+
+# ----------------------------------------- heavy cantilever resting on a floor
+def test_heavy_cantilever_on_floor_matches_the_elastica():
+    """Shape and clamp reaction against the elastica with an unknown touchdown point
+    (tests/contact_reference.py, a shooting solution of its own)."""
+    from contact_reference import heavy_cantilever_on_floor
+
+    L, EI, w, d, r = 1.0, 0.05, 1.0, 0.05, 0.01
+    ref = heavy_cantilever_on_floor(L, EI, w, d)
+    nd = 4
+    divs = [
+        sj.Division(
+            L / nd, sj.CircularSection(r), sj.LegendreBasis((0, 1, 0, 0, 0, 0), 3)
+        )
+        for _ in range(nd)
+    ]
+    rod = sj.SoftLink(
+        divs,
+        sj.Material(E=EI / (np.pi * r**4 / 4), poisson=0.5, rho=w / (np.pi * r**2 * G)),
+    )
+    law = sj.ContactLaw(stiffness=1e6, smoothing=1e-7)
+    lk = sj.Linkage(
+        [rod], placements=_pose(d + r)[None], gravity=(0, 0, -G),
+        contact=sj.Contact(sj.Plane(), law, spacing=0.01),
+    )  # fmt: skip
+    sol = sj.solve_statics(lk)
+    g = np.asarray(sj.forward_kinematics(lk, sol.q))
+    lay = lk.layout
+    # the division ends at arc lengths 0, L/4, ..., L: 5 exact positions, plus the
+    # rod's points in between
+    pts = np.where(lay.point_kind == 2)[0]
+    s = (lay.point_division[pts] - 1 + lay.point_X1[pts]) * L / nd
+    # the swept sphere rests its centre line one radius above the floor
+    xr = np.interp(s, ref["s"], ref["x"])
+    zr = np.interp(s, ref["s"], ref["z"]) + r
+    err = np.max(np.hypot(g[pts, 0, 3] - xr, g[pts, 2, 3] - zr))
+    # penalty compliance (w / k = 1e-6 m) and the rounded touchdown zone
+    # ((EI / k)^(1/4) = 1.5 cm long): measured 2.9e-5 L
+    assert err < 2e-3 * L, f"centre line {err / L:.2e} L from the elastica"
+    cs = sj.contact_state(lk, sol.q)
+    clamp_fz = w * L - float(cs.total_force()[2])
+    # the clamp carries the hanging part's weight less R: measured 5e-4 relative
+    np.testing.assert_allclose(clamp_fz, ref["clamp_force"][1], rtol=2e-3)
