@@ -26,15 +26,9 @@ from jaxtyping import Array, ArrayLike, Float
 
 from .._jit import jit
 from ..kinematics._api import _as_q
-from ..model._contact import Contact, contact_links, soft_radius
+from ..model._contact import Contact, _safe_norm, contact_links, soft_radius
 from ..model._linkage import Linkage
 from ..model._precompute import precompute
-
-
-def _safe_norm(x: Array) -> Array:
-    sq = jnp.sum(x * x, axis=-1)
-    pos = sq > 0
-    return jnp.where(pos, jnp.sqrt(jnp.where(pos, sq, 1.0)), 0.0)
 
 
 # ------------------------------------------------------------------ sample tables
