@@ -5,7 +5,7 @@ points take ``throw`` (raise on failure) as optimistix and diffrax do.
 """
 
 from collections.abc import Callable
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import equinox as eqx
 import jax
@@ -70,6 +70,9 @@ class StaticsSolution(eqx.Module):
             unloaded elastic rod, 0 at a buckling load); ``+inf`` when no free
             direction is left. All three are taken at the last iterate's Jacobian
             (no extra evaluation) and carry no gradient.
+        contact: a :class:`~sorojax.ContactState` at ``q`` (frictionless: points,
+            normals, penetrations and forces of every candidate contact) for a
+            linkage with contact, else None.
     """
 
     q: Float[Array, " n_dof"]
@@ -83,6 +86,7 @@ class StaticsSolution(eqx.Module):
     stable: Bool[Array, ""]
     n_negative: Int[Array, ""]
     min_eigenvalue: Float[Array, ""]
+    contact: Any = None
 
 
 def failed(result: RESULTS) -> bool | Array:

@@ -62,6 +62,8 @@ def test_floor_reaction_equals_weight(floor_solution):
     # statics: the reaction balances the weight up to the solver's tolerance (1e-10)
     np.testing.assert_allclose(float(cs.total_force()[2]), weight, rtol=1e-6)
     assert np.all(np.asarray(cs.obstacle) == 0) and cs.point.shape[0] == 11
+    # the solution carries the same report (computed inside the solve's program)
+    np.testing.assert_allclose(sol.contact.force, cs.force, rtol=1e-12, atol=1e-15)
 
 
 def test_floor_penetration_follows_the_law(floor_solution):
@@ -179,6 +181,17 @@ def test_drop_energy_never_rises_and_rod_comes_to_rest():
     )
     assert E[-1] < 0.5 * E[0]
     cs = sj.contact_state(lk, tr.q[-1], tr.qd[-1])
+    # the trajectory carries the contact report at every save time
+    assert tr.contact.force.shape == (151, cs.force.shape[0], 3)
+    np.testing.assert_allclose(tr.contact.force[-1], cs.force, rtol=1e-10, atol=1e-14)
+    # an environment's touch observation: the resultant on the rod
+    env = sj.Environment(lk, period=0.01, solver="tsit5")
+    state = sj.EnvState(
+        q=tr.q[-1], qd=tr.qd[-1], t=jnp.asarray(1.5), u=jnp.zeros(0),
+        result=jnp.asarray(0), steps=jnp.asarray(0),
+    )  # fmt: skip
+    np.testing.assert_allclose(env.contact_forces(state)[0], cs.total_force(), rtol=1e-12)
+    assert env.observation(state).shape == (2 * lk.n_dof + 6 + 3,)
     weight = 1000.0 * np.pi * 0.01**2 * 0.3 * G
     # at rest the floor carries the weight (residual motion after 1.5 s: < 1e-3)
     np.testing.assert_allclose(float(cs.total_force()[2]), weight, rtol=1e-3)
@@ -186,7 +199,7 @@ def test_drop_energy_never_rises_and_rod_comes_to_rest():
 
 
 # -------------------------------------------------------------------- crossing rods
-def crossing_rods(P):
+def crossing_rods(P, x=0.3):
     """Rod 1 a cantilever along x; rod 2 along y, free to slide vertically (P joint),
     pressed onto rod 1 by a downward force P at its middle."""
     r = 0.01
@@ -200,7 +213,7 @@ def crossing_rods(P):
     )
     g2 = np.eye(4)
     g2[:3, :3] = np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1]])  # x along world y
-    g2[:3, 3] = [0.3, -0.1, 2 * r]
+    g2[:3, 3] = [x, -0.1, 2 * r]
     law = sj.ContactLaw(stiffness=1e5, smoothing=1e-6)
     contact = sj.Contact((), law, rod_pairs=[(1, 2)], spacing=0.02)
     return sj.Linkage(
@@ -210,12 +223,11 @@ def crossing_rods(P):
     )  # fmt: skip
 
 
-def test_crossing_rods_press_without_passing_through():
+@pytest.mark.parametrize("x", [0.3, 0.31])  # at a vertex of rod 1, between two
+def test_crossing_rods_press_without_passing_through(x):
     P = 0.5
-    lk = crossing_rods(P)
-    # one load step: the rods start just touching, and the contact's step limit
-    # brings them together (the automatic schedule does not converge here yet)
-    sol = sj.solve_statics(lk, load_steps=1)
+    lk = crossing_rods(P, x)
+    sol = sj.solve_statics(lk)
     cs = sj.contact_state(lk, sol.q)
     # rod 2's joint carries no vertical force: the contact takes the whole load
     # (rows are the forces on rod 1, pressed down)

@@ -27,6 +27,7 @@ from jaxtyping import Array, ArrayLike, Float, Int, PRNGKeyArray
 from .._jit import jit
 from .._results import RESULTS
 from ..dynamics._actuation import cable_lengths
+from ..dynamics._contact import contact_state, pair_link_b
 from ..integrate._simulate import (
     _initial_state,
     _make_solver,
@@ -318,11 +319,38 @@ class Environment(eqx.Module):
         """Length of every cable [m]."""
         return cable_lengths(self.linkage, state.q)
 
+    def contacts(self, state: EnvState):
+        """The :class:`~sorojax.ContactState` at the state (friction included)."""
+        return contact_state(self.linkage, state.q, state.qd, state.t)
+
+    def contact_forces(self, state: EnvState) -> Float[Array, "n_links 3"]:
+        """Resultant contact force on each link [N, world]: a touch sensor.
+
+        Obstacles and the other rods' pushes on the link (rod-rod pairs count for
+        both links, with opposite signs); zeros for links that touch nothing.
+        """
+        cs = self.contacts(state)
+        # the rows' reaction on link B of a pair: minus the force on link A
+        pair_b = pair_link_b(self.linkage)
+        out = jnp.zeros((self.linkage.n_links, 3), state.q.dtype)
+        out = out.at[cs.link - 1].add(cs.force)
+        if pair_b.size:
+            n_obs = cs.force.shape[0] - pair_b.size
+            out = out.at[pair_b - 1].add(-cs.force[n_obs:])
+        return out
+
     def observation(self, state: EnvState) -> Float[Array, " n_obs"]:
-        """A flat observation: ``[q, qd, tip position, tip velocity]``."""
+        """A flat observation: ``[q, qd, tip position, tip velocity]``.
+
+        With contact, the resultant contact force on every link follows
+        (:meth:`contact_forces`, flattened).
+        """
         point = self.linkage.tip_point(self.linkage.n_links)
         x, v = _tip_motion(self.linkage, state.q, state.qd, point)
-        return jnp.concatenate([state.q, state.qd, x, v])
+        parts = [state.q, state.qd, x, v]
+        if self.linkage.contact is not None:
+            parts.append(self.contact_forces(state).ravel())
+        return jnp.concatenate(parts)
 
 
 @jit

@@ -252,6 +252,15 @@ def _obstacle_terms(contact: Contact, samples: Samples, g, eta, t, friction: boo
 
 def segment_closest(p0, p1, q0, q1):
     """Parameters (s, u) in [0, 1] of the closest points of segments p0p1 and q0q1."""
+    return _segment_closest(p0, p1, q0, q1)[:2]
+
+
+def _segment_closest(p0, p1, q0, q1):
+    """``(s, u, s_line, u_line, parallel)``: closest points of segments and lines.
+
+    ``s_line``, ``u_line`` are the lines' (unclamped) parameters; the segments'
+    own when the segments are parallel.
+    """
     d1, d2, r = p1 - p0, q1 - q0, p0 - q0
     a, e = jnp.dot(d1, d1), jnp.dot(d2, d2)
     b, c, f = jnp.dot(d1, d2), jnp.dot(d1, r), jnp.dot(d2, r)
@@ -259,12 +268,9 @@ def segment_closest(p0, p1, q0, q1):
     safe_e = jnp.where(e > 0, e, 1.0)
     den = a * e - b * b
     parallel = den <= 1e-12 * a * e
-    s = jnp.where(
-        parallel,
-        0.0,
-        jnp.clip((b * f - c * e) / jnp.where(parallel, 1.0, den), 0.0, 1.0),
-    )
-    s = jnp.where(a > 0, s, 0.0)
+    s_line = jnp.where(parallel, 0.0, (b * f - c * e) / jnp.where(parallel, 1.0, den))
+    u_line = (b * s_line + f) / safe_e
+    s = jnp.where(a > 0, jnp.clip(s_line, 0.0, 1.0), 0.0)
     u = (b * s + f) / safe_e
     s = jnp.where(
         u < 0,
@@ -274,7 +280,25 @@ def segment_closest(p0, p1, q0, q1):
     u = jnp.clip(u, 0.0, 1.0)
     s = jnp.where(a > 0, s, 0.0)
     u = jnp.where(e > 0, u, 0.0)
-    return s, u
+    s_line = jnp.where(parallel, s, s_line)
+    u_line = jnp.where(parallel, (b * s + f) / safe_e, u_line)
+    return s, u, s_line, u_line, parallel
+
+
+PAIR_RAMP = 0.25  # half-width of the shares' ramps at shared vertices [segment]
+
+
+def _vertex_share(x, first, last):
+    """Share of a segment pair's contact along one rod (x: the line parameter).
+
+    1 inside the segment, ramping to 1/2 at a vertex shared with the next segment
+    (and to 0 a ramp's width beyond it), so that two straight neighbours' shares
+    add up to 1 and a crossing at a vertex is counted once; no ramp at the rod's
+    two ends.
+    """
+    lo = jnp.where(first, 1.0, jnp.clip(0.5 + x / (2 * PAIR_RAMP), 0.0, 1.0))
+    hi = jnp.where(last, 1.0, jnp.clip(0.5 + (1.0 - x) / (2 * PAIR_RAMP), 0.0, 1.0))
+    return lo * hi
 
 
 def _pair_list(linkage: Linkage):
@@ -305,6 +329,14 @@ def _pair_list(linkage: Linkage):
     return out
 
 
+def pair_link_b(linkage: Linkage) -> np.ndarray:
+    """Link B of every rod-rod or self-contact row of :class:`ContactState`."""
+    out = [
+        np.asarray(sb.link)[gb.start[ib]] for _, _, sb, gb, _, ib in _pair_list(linkage)
+    ]
+    return np.concatenate(out) if out else np.zeros(0, int)
+
+
 def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
     """Rod-rod contacts: (wrench rows, report rows)."""
     law = contact.law
@@ -315,7 +347,16 @@ def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
         Rb, pb, xb, wb, vb = _world_points(g, eta, sb)
         a0, a1 = ga.start[ia], ga.end[ia]
         b0, b1 = gb.start[ib], gb.end[ib]
-        s, u = jax.vmap(segment_closest)(xa[a0], xa[a1], xb[b0], xb[b1])
+        s, u, s_line, u_line, parallel = jax.vmap(_segment_closest)(
+            xa[a0], xa[a1], xb[b0], xb[b1]
+        )
+        share = _vertex_share(s_line, ia == 0, ia == len(ga.start) - 1) * _vertex_share(
+            u_line, ib == 0, ib == len(gb.start) - 1
+        )
+        # parallel segments take their start vertex: every vertex once
+        share = jnp.where(
+            parallel, _vertex_share(u_line, ib == 0, ib == len(gb.start) - 1), share
+        )
         PA = xa[a0] + s[:, None] * (xa[a1] - xa[a0])
         PB = xb[b0] + u[:, None] * (xb[b1] - xb[b0])
         rA = (1 - s) * sa.radius[a0] + s * sa.radius[a1]
@@ -338,7 +379,7 @@ def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
             d,
             n,
             v_rel,
-            jnp.ones_like(d),
+            share,
             friction and contact.friction_in_rod_pairs,
         )
         for idx, R_, p_, c_, lam, sign, pts in (
@@ -349,7 +390,8 @@ def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
         ):
             Wk = _point_wrenches(R_[idx], p_[idx], c_, sign * lam[:, None] * f)
             W = W.at[pts[idx]].add(Wk)
-        rows.append((cA, n, d, fn, f, vt, jnp.sum(law.potential(d)), sa.link[a0]))
+        energy = jnp.sum(share * law.potential(d))
+        rows.append((cA, n, d, fn, f, vt, energy, sa.link[a0]))
     return W, rows
 
 
@@ -437,15 +479,19 @@ def contact_state(
             "contact_state: this linkage has no contact; give Linkage(contact="
             "sorojax.Contact(...))."
         )
+    q = _as_q(linkage, q)
+    qd = None if qd is None else _as_q(linkage, qd, "qd")
+    return state_from_data(linkage, precompute(linkage), q, qd, jnp.asarray(t, q.dtype))
+
+
+def state_from_data(linkage: Linkage, data, q, qd, t) -> ContactState:
+    """:func:`contact_state` from precomputed data (inside other programs)."""
     from ..kinematics._recursion import kinematics_and_rates, poses
 
-    q = _as_q(linkage, q)
-    data = precompute(linkage)
-    t = jnp.asarray(t, q.dtype)
     if qd is None:
         g, eta = poses(data, q), None
     else:
-        g, _, eta, _ = kinematics_and_rates(data, q, _as_q(linkage, qd, "qd"))
+        g, _, eta, _ = kinematics_and_rates(data, q, qd)
     _, rows, labels = _contact(linkage, t, g, eta)
     if not rows:
         z = jnp.zeros((0,), q.dtype)
@@ -461,6 +507,15 @@ def contact_state(
 
 
 @jit
+def trajectory_contacts(linkage: Linkage, t, q, qd) -> ContactState:
+    """Contact states at a trajectory's save times (leading axis: time)."""
+    data = precompute(linkage)
+    return jax.vmap(lambda t_, q_, qd_: state_from_data(linkage, data, q_, qd_, t_))(
+        t, q, qd
+    )
+
+
+@jit
 def contact_energy(linkage: Linkage, q: ArrayLike) -> Float[Array, ""]:
     """Elastic contact energy [J] at ``q`` (add it to :func:`total_energy`)."""
     from ..kinematics._recursion import poses
@@ -469,3 +524,62 @@ def contact_energy(linkage: Linkage, q: ArrayLike) -> Float[Array, ""]:
     if linkage.contact is None:
         return jnp.zeros((), q.dtype)
     return contact_energy_from_poses(linkage, poses(precompute(linkage), q))
+
+
+def contact_tangent(linkage: Linkage, t, g, J, eta) -> tuple[Array, Array]:
+    """``(K_c, D_c)``: the obstacle contacts' stiffness and damping in coordinates.
+
+    Gauss-Newton forms (symmetric positive semi-definite, so that ROS34PW2's
+    ``M + c D + c^2 K`` stays positive definite): ``K_c = sum J_c^T (w f_n'(d)
+    n n^T) J_c`` and ``D_c = sum J_c^T (w c s(d) n n^T + w c_t (I - n n^T)) J_c``
+    with ``J_c`` the world linear-velocity Jacobian of each contact point and
+    ``c_t = mu f_n / sqrt(|v_t|^2 + v_s^2)`` the friction's viscous slope. The
+    geometric (curvature) terms and rod-rod pairs are left out: W only needs the
+    contacts' fast scales, its order conditions hold for any W.
+    """
+    contact = linkage.contact
+    assert contact is not None
+    n_dof = J.shape[-1]
+    Kc = jnp.zeros((n_dof, n_dof), J.dtype)
+    Dc = jnp.zeros((n_dof, n_dof), J.dtype)
+    if not contact.obstacles:
+        return Kc, Dc
+    law = contact.law
+    samples = obstacle_samples(linkage)
+    R, p, x, w, v = _world_points(g, eta, samples)
+    Jp = J[samples.point]  # (n, 6, n_dof) body Jacobians
+    for ob in contact.obstacles:
+        G, Gd = ob.frame(t)
+        RG, pG = G[:3, :3], G[:3, 3]
+        xl = (x - pG[None]) @ RG
+        phi, grad = jax.vmap(jax.value_and_grad(ob.distance))(xl)
+        n = grad @ RG.T
+        n = n / jnp.maximum(_safe_norm(n), 1e-12)[:, None]
+        d = samples.radius - phi
+        x_c = x - samples.radius[:, None] * n
+        v_obs = ((x_c - pG[None]) @ RG) @ Gd[:3, :3].T + Gd[None, :3, 3]
+        v_rel = v + jnp.cross(w, x_c - x) - v_obs
+        a_b = jnp.einsum("nji,nj->ni", R, x_c - p)
+        # v_c = R (v_b + w_b x a_b) = R (J_v - [a_b]x J_w) qd
+        Jc = jnp.einsum(
+            "nij,njk->nik", R, Jp[:, 3:] - jnp.cross(a_b[:, :, None], Jp[:, :3], axis=1)
+        )
+        kn = samples.weight * jax.vmap(jax.grad(law.normal_force))(d)
+        cn = samples.weight * law.damping * law.ramp(d)
+        vn = jnp.sum(v_rel * n, axis=-1)
+        vt = v_rel - vn[:, None] * n
+        ct = (
+            samples.weight
+            * law.friction_coefficient(_safe_norm(vt))
+            * law.normal_force(d)
+            / jnp.sqrt(jnp.sum(vt * vt, axis=-1) + law.stick_velocity**2)
+        )
+        Jn = jnp.einsum("ni,nik->nk", n, Jc)  # normal rows
+        Kc = Kc + jnp.einsum("n,ni,nj->ij", kn, Jn, Jn)
+        JtJ = jnp.einsum("nik,nil->nkl", Jc, Jc)
+        Dc = (
+            Dc
+            + jnp.einsum("n,ni,nj->ij", cn - ct, Jn, Jn)
+            + jnp.einsum("n,nkl->kl", ct, JtJ)
+        )
+    return Kc, Dc

@@ -32,6 +32,7 @@ from jaxtyping import Array, ArrayLike
 from .._jit import _bound_arguments, _top_level, in_tiers, jit
 from .._recompile import note_function, note_hooks
 from .._results import RESULTS, throw_on_failure
+from ..dynamics._contact import contact_tangent, trajectory_contacts
 from ..dynamics._eom import (
     GeneralizedForce,
     InputFunction,
@@ -43,6 +44,7 @@ from ..dynamics._eom import (
     spd_solve,
 )
 from ..kinematics._api import _as_q
+from ..kinematics._recursion import kinematics_and_rates
 from ..model._link import SoftLink
 from ..model._linkage import Linkage
 from ..model._precompute import precompute
@@ -258,7 +260,11 @@ def _input_function(u_fn, u_const) -> InputFunction:
 
 @eqx.filter_jit
 def _rates(linkage: Linkage, data, t, y, u_fn, u_const, generalized_force):
-    """``(qd, qdd)``, M and (with inputs) the constrained state at ``(t, y)``.
+    """``(qd, qdd)``, the stiff part ``(M, K, D)`` and the constrained state.
+
+    ``K`` and ``D`` are the model's constant ones, plus the contacts' tangent
+    stiffness and damping when the linkage's contact puts them in W
+    (``Contact.tangent_in_w``); the constrained state is None without inputs.
 
     Jitted so that the right-hand side is traced once for the compiled program:
     diffrax calls the vector field from several places (first stage, the stage loop)
@@ -268,13 +274,23 @@ def _rates(linkage: Linkage, data, t, y, u_fn, u_const, generalized_force):
     """
     n = y.shape[0] // 2
     q, qd = y[:n], y[n:]
+    tangent = linkage.contact is not None and linkage.contact.tangent_in_w
     if not _needs_inputs(linkage):
-        M, f = mass_and_force(linkage, data, t, q, qd, generalized_force)
-        return jnp.concatenate([qd, spd_solve(M, f)]), M, None
-    st = constrained_dynamics(
-        linkage, data, t, q, qd, _input_function(u_fn, u_const), generalized_force
-    )
-    return jnp.concatenate([st.qd, st.qdd]), st.M, st
+        rates = kinematics_and_rates(data, q, qd)
+        M, f = mass_and_force(linkage, data, t, q, qd, generalized_force, rates=rates)
+        ydot, st = jnp.concatenate([qd, spd_solve(M, f)]), None
+    else:
+        st = constrained_dynamics(
+            linkage, data, t, q, qd, _input_function(u_fn, u_const), generalized_force
+        )
+        ydot, M, rates = jnp.concatenate([st.qd, st.qdd]), st.M, None
+    if tangent:  # the contacts' stiffness and damping join W (ROS34PW2)
+        if rates is None:
+            rates = kinematics_and_rates(data, q, st.qd)
+        g, J, eta, _ = rates
+        Kc, Dc = contact_tangent(linkage, t, g, J, eta)
+        return ydot, (M, data.K + Kc, data.D + Dc), st
+    return ydot, (M, data.K, data.D), st
 
 
 def consistent_start(linkage: Linkage, data, t0, y0, u_fn, u_const) -> Array:
@@ -313,8 +329,8 @@ class _Field(eqx.Module):
         linkage, data, u_const, u_fn, generalized_force = jax.tree_util.tree_unflatten(
             self.treedef, parts
         )
-        ydot, M, _ = _rates(linkage, data, t, y, u_fn, u_const, generalized_force)
-        return ydot, (M, data.K, data.D)
+        ydot, stiff, _ = _rates(linkage, data, t, y, u_fn, u_const, generalized_force)
+        return ydot, stiff
 
 
 def _vector_field(
@@ -578,6 +594,13 @@ def simulate(
                 lambda tr: (tr.u, tr.efforts, tr.lam),
                 traj,
                 inputs,
+                is_leaf=lambda x: x is None,
+            )
+        if linkage.contact is not None:
+            traj = eqx.tree_at(
+                lambda tr: tr.contact,
+                traj,
+                trajectory_contacts(linkage, traj.t, traj.q, traj.qd),
                 is_leaf=lambda x: x is None,
             )
     if not throw:

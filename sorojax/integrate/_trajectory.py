@@ -1,5 +1,7 @@
 """The result of :func:`sorojax.simulate`: saved states, result code and statistics."""
 
+from typing import Any
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -27,6 +29,9 @@ class Trajectory(eqx.Module):
             or None for a linkage without actuators or closed loops.
         efforts: (n_save, n_prescribed) efforts of prescribed joint coordinates.
         lam: (n_save, n_constraints) closed-loop multipliers.
+        contact: a :class:`~sorojax.ContactState` with a leading time axis
+            (points, normals, penetrations, forces and slip of every candidate
+            contact at each save time) for a linkage with contact, else None.
     """
 
     t: Float[Array, " n_save"]
@@ -40,6 +45,7 @@ class Trajectory(eqx.Module):
     u: Float[Array, "n_save n_inputs"] | None = None
     efforts: Float[Array, "n_save n_prescribed"] | None = None
     lam: Float[Array, "n_save n_constraints"] | None = None
+    contact: Any = None
 
     @property
     def qqd(self) -> Float[Array, "n_save two_n_dof"]:

@@ -517,6 +517,9 @@ class Contact(eqx.Module):
             along the rod than 2.5 times the sum of their radii).
         friction_in_rod_pairs: whether rod-rod contacts carry friction (default
             True; the law's coefficients).
+        tangent_in_w: whether ROS34PW2's W carries the obstacle contacts' stiffness
+            and damping (default True: stiff contact and sticking friction then
+            do not bound its step; ``benchmarks/contact.py`` measures both).
     """
 
     obstacles: tuple[AbstractObstacle, ...]
@@ -528,6 +531,7 @@ class Contact(eqx.Module):
     rod_pairs: tuple[tuple[int, int], ...] = eqx.field(static=True)
     self_contact: tuple[int, ...] = eqx.field(static=True)
     friction_in_rod_pairs: bool = eqx.field(static=True)
+    tangent_in_w: bool = eqx.field(static=True)
     cells: tuple | None = eqx.field(static=True)  # resolved by the Linkage
 
     def __init__(
@@ -541,6 +545,7 @@ class Contact(eqx.Module):
         rod_pairs=(),
         self_contact=(),
         friction_in_rod_pairs: bool = True,
+        tangent_in_w: bool = True,
         cells: tuple | None = None,
     ):
         if isinstance(obstacles, AbstractObstacle):
@@ -585,6 +590,7 @@ class Contact(eqx.Module):
         self.rod_pairs = tuple((int(a), int(b)) for a, b in rod_pairs)
         self.self_contact = tuple(int(i) for i in self_contact)
         self.friction_in_rod_pairs = bool(friction_in_rod_pairs)
+        self.tangent_in_w = bool(tangent_in_w)
         self.cells = cells
 
     def shape_of(self, link: int) -> AbstractContactShape | None:
@@ -717,5 +723,6 @@ def resolve_contact(contact: Contact, links) -> Contact:
         rod_pairs=contact.rod_pairs,
         self_contact=contact.self_contact,
         friction_in_rod_pairs=contact.friction_in_rod_pairs,
+        tangent_in_w=contact.tangent_in_w,
         cells=tuple(cells),
     )

@@ -41,7 +41,11 @@ from ..dynamics._constraints import (
     closure_errors_and_wrenches,
     numerical_rank,
 )
-from ..dynamics._contact import contact_wrenches_and_penetrations, smallest_radius
+from ..dynamics._contact import (
+    contact_wrenches_and_penetrations,
+    smallest_radius,
+    state_from_data,
+)
 from ..dynamics._eom import as_inputs
 from ..dynamics._external import custom_wrenches, external_wrenches
 from ..dynamics._generalized import kinematics_from_data
@@ -270,9 +274,10 @@ def _newton(
     Jacobian takes a Levenberg-shifted step instead of failing. ``contact_rows =
     (start, depth)``: ``aux[start:]`` are contact penetrations d, and a step is
     shortened so that, by its linear prediction, no contact ends deeper than
-    ``max(depth, 2 d)`` (a free body does not jump through what it touches, nor
-    a just-touching rod through a thin one; a contact that must go deeper doubles
-    its penetration per iteration).
+    ``max(depth, 8 d)`` (a free body does not jump through what it touches, nor
+    a just-touching rod through a thin one; a contact that must go deeper grows
+    eightfold per iteration). A step that made the residual grow halves the next
+    (contact's kinks can make Newton cycle).
 
     Returns ``(x, f, aux, (J, J_aux), steps, status)`` (``J_aux = daux/dx``), status
     0 converged, 1 out of steps, 2 non-finite values, 3 failed linear solve.
@@ -303,13 +308,14 @@ def _newton(
         jnp.full((), -1, int_),
         zeros[0],
         zeros[1],
+        (one, jnp.full((), jnp.inf, dtype)),  # step damping (contact): trust, |f|
     )
 
     def cond(c):
         return c[6] < 0
 
     def body(c):
-        k, n, x, it, total, small, _, _, _ = c
+        k, n, x, it, total, small, _, _, _, (trust, f_prev) = c
         probe = k == 0
         (J, J_aux), (f, aux) = evaluate(x, jnp.where(probe, one, k / n))
         if n_mult:
@@ -333,41 +339,34 @@ def _newton(
         tol_a = jnp.where(last, atol, 1e-4)
         tol_r = jnp.where(last, rtol, 1e-4)
         finite = jnp.all(jnp.isfinite(f)) & jnp.all(jnp.isfinite(J))
-        sol = lx.linear_solve(
-            lx.MatrixLinearOperator(jnp.where(finite, J, 0.0)),
-            jnp.where(finite, f, 0.0),
-            linear_solver,
-            throw=False,
-        )
+        Jf, ff = jnp.where(finite, J, 0.0), jnp.where(finite, f, 0.0)
+        if regularise:
+            # Contact: a body that floats free of its obstacles has no stiffness in
+            # the directions contact will hold (a singular or nearly singular
+            # tangent): Levenberg's shift, tiny against the stiffness, steps along
+            # the load there (within the step caps) until contact holds it.
+            shift = 1e-9 * jnp.maximum(jnp.max(jnp.abs(Jf)), 1.0)
+            dx = jnp.linalg.solve(Jf + shift * jnp.eye(Jf.shape[0], dtype=dtype), ff)
+            solved = jnp.all(jnp.isfinite(dx))
+        else:
+            sol = lx.linear_solve(
+                lx.MatrixLinearOperator(Jf), ff, linear_solver, throw=False
+            )
+            dx = sol.value
+            solved = sol.result == lx.RESULTS.successful
         # Step cap: no coordinate moves more than max_step (scaled units, about rad)
         # in one iteration, the direction kept. Far from a root a full Newton step
         # can leave the basin of the equilibrium near the guess (a slightly buckled
         # guess of a clamped-clamped rod diverged); near a root steps are far below.
-        dx = sol.value
-        if regularise:
-            # A body that floats free of its obstacles has no stiffness in the
-            # directions contact will hold (a singular tangent): step along the
-            # load instead (Levenberg's shift, tiny against the stiffness), within
-            # the step cap, until contact makes the tangent regular.
-            bad = (sol.result != lx.RESULTS.successful) | ~jnp.all(jnp.isfinite(dx))
-            Jf = jnp.where(finite, J, 0.0)
-            shift = 1e-9 * jnp.maximum(jnp.max(jnp.abs(Jf)), 1.0)
-            dx_reg = jnp.linalg.solve(
-                Jf + shift * jnp.eye(Jf.shape[0], dtype=dtype),
-                jnp.where(finite, f, 0.0),
-            )
-            dx = jnp.where(bad, dx_reg, dx)
         dx = dx / jnp.maximum(jnp.max(jnp.abs(dx[:n_eq]), initial=0.0) / max_step, 1.0)
         if contact_rows is not None:
             start, depth = contact_rows
             d = jnp.where(jnp.isfinite(aux[start:]), aux[start:], 0.0)
             deeper = -(jnp.where(finite, J_aux[start:], 0.0) @ dx)
-            room = jnp.maximum(depth, 2.0 * d) - d  # > 0
+            room = jnp.maximum(depth, 8.0 * d) - d  # > 0
             ratio = jnp.where(deeper > 0, deeper / room, 0.0)
             dx = dx / jnp.maximum(jnp.max(ratio, initial=0.0), 1.0)
-        solved = ((sol.result == lx.RESULTS.successful) | regularise) & jnp.all(
-            jnp.isfinite(dx)
-        )
+        solved = solved & jnp.all(jnp.isfinite(dx))
         dx_small = jnp.max(jnp.abs(dx) / (tol_a + tol_r * jnp.abs(x)), initial=0.0) <= 1
         f_small = jnp.max(jnp.abs(f), initial=0.0) <= tol_a
         # Final increment: converged when the residual here is within atol and so is
@@ -388,6 +387,14 @@ def _newton(
             [-1, 0, -1, 2, 1, 3],
             -1,
         ).astype(int_)
+        f_norm = jnp.max(jnp.abs(f), initial=0.0)
+        if regularise:
+            # Contact's closest points and shares switch: Newton can cycle around
+            # a kink of the tangent. A step that made |f| grow halves the next.
+            trust = jnp.where(
+                iterate & (f_norm > f_prev), 0.5 * trust, jnp.minimum(2.0 * trust, 1.0)
+            )
+            dx = trust * dx
         return (
             jnp.where(~iterate | advance, k + 1, k),
             n,
@@ -398,9 +405,10 @@ def _newton(
             status,
             (J, J_aux),
             (f, aux),
+            (trust, jnp.where(iterate & ~advance, f_norm, jnp.inf)),
         )
 
-    _, _, x, _, total, _, status, Js, (f, aux) = lax.while_loop(cond, body, init)
+    _, _, x, _, total, _, status, Js, (f, aux), _ = lax.while_loop(cond, body, init)
     return x, f, aux, Js, total, status
 
 
@@ -473,7 +481,7 @@ def _solve_statics(
 
     x0 = jnp.concatenate([q0[free], jnp.zeros(n_c, q0.dtype)])
     args = (data, u, dyn, q_p0, t)
-    # no Newton step makes a contact deeper than this (or twice its depth)
+    # no Newton step makes a contact deeper than this (or 8 times its depth)
     contact_cap = (
         None
         if linkage.contact is None
@@ -584,6 +592,9 @@ def _solve_statics(
         stable=stable,
         n_negative=n_negative,
         min_eigenvalue=lam_min,
+        contact=None
+        if linkage.contact is None
+        else state_from_data(linkage, data, q, None, t),
     )
 
 
