@@ -291,13 +291,17 @@ PAIR_RAMP = 0.25  # half-width of the shares' ramps at shared vertices [segment]
 def _vertex_share(x, first, last):
     """Share of a segment pair's contact along one rod (x: the line parameter).
 
-    1 inside the segment, ramping to 1/2 at a vertex shared with the next segment
-    (and to 0 a ramp's width beyond it), so that two straight neighbours' shares
+    1 inside the segment, ramping smoothly to 1/2 at a vertex shared with the next
+    segment (and to 0 a ramp's width beyond it), so that two straight neighbours' shares
     add up to 1 and a crossing at a vertex is counted once; no ramp at the rod's
     two ends.
     """
-    lo = jnp.where(first, 1.0, jnp.clip(0.5 + x / (2 * PAIR_RAMP), 0.0, 1.0))
-    hi = jnp.where(last, 1.0, jnp.clip(0.5 + (1.0 - x) / (2 * PAIR_RAMP), 0.0, 1.0))
+    def smoothstep(y):  # 0 below -PAIR_RAMP, 1 above, h(y) + h(-y) = 1, C1
+        z = jnp.clip(0.5 + y / (2 * PAIR_RAMP), 0.0, 1.0)
+        return z * z * (3.0 - 2.0 * z)
+
+    lo = jnp.where(first, 1.0, smoothstep(x))
+    hi = jnp.where(last, 1.0, smoothstep(1.0 - x))
     return lo * hi
 
 
