@@ -32,6 +32,7 @@ _LAZY = {
     "Environment": ".control",
     "EnvState": ".control",
     "rollout": ".control",
+    "AnnularSection": ".model",
     "Box": ".model",
     "Capsule": ".model",
     "Contact": ".model",
@@ -195,6 +196,7 @@ if TYPE_CHECKING:  # static analysers see the names as plain imports
     from .kinematics import screw_velocities as screw_velocities
     from .kinematics import strain_coordinates as strain_coordinates
     from .kinematics import tip_pose as tip_pose
+    from .model import AnnularSection as AnnularSection
     from .model import Box as Box
     from .model import Cable as Cable
     from .model import CableAnchor as CableAnchor

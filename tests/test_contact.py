@@ -190,7 +190,9 @@ def test_drop_energy_never_rises_and_rod_comes_to_rest():
         q=tr.q[-1], qd=tr.qd[-1], t=jnp.asarray(1.5), u=jnp.zeros(0),
         result=jnp.asarray(0), steps=jnp.asarray(0),
     )  # fmt: skip
-    np.testing.assert_allclose(env.contact_forces(state)[0], cs.total_force(), rtol=1e-12)
+    np.testing.assert_allclose(
+        env.contact_forces(state)[0], cs.total_force(), rtol=1e-12
+    )
     assert env.observation(state).shape == (2 * lk.n_dof + 6 + 3,)
     weight = 1000.0 * np.pi * 0.01**2 * 0.3 * G
     # at rest the floor carries the weight (residual motion after 1.5 s: < 1e-3)
@@ -355,3 +357,42 @@ def test_heavy_cantilever_on_floor_matches_the_elastica():
     clamp_fz = w * L - float(cs.total_force()[2])
     # the clamp carries the hanging part's weight less R: measured 5e-4 relative
     np.testing.assert_allclose(clamp_fz, ref["clamp_force"][1], rtol=2e-3)
+
+
+# ------------------------------------------------------------- inside a soft tube
+def test_sphere_pushed_through_a_curved_tube_stays_inside():
+    """A ball pushed along x into a soft tube pre-curved by 3 rad/m follows the bore."""
+    Ro, Ri, rho = 0.014, 0.01, 0.008
+    tube = sj.SoftLink(
+        [sj.Division(0.3, sj.AnnularSection(Ro, Ri), sj.LegendreBasis((0, 1, 1, 0, 0, 0), 1),
+                     xi_ref=(0, 0, 3.0, 1, 0, 0))],
+        sj.Material(E=1e6, poisson=0.5, rho=1000.0, eta=1e3),
+    )  # fmt: skip
+    ball = sj.RigidLink(sj.Joint("F"), length=0.01, mass=0.005,
+                        inertia=np.diag([1e-7] * 3), g_i=np.eye(4), g_f=np.eye(4))  # fmt: skip
+    place = np.stack([np.eye(4), _pose()])
+    place[1, 0, 3] = 0.02
+    law = sj.ContactLaw(stiffness=2e3, smoothing=1e-5, damping=2.0)
+    lk = sj.Linkage(
+        [tube, ball], parents=(0, 0), placements=place,
+        point_wrenches=[sj.PointWrench(2, jnp.stack([0.0, 0, 0, 0.05, 0, 0]))],
+        contact=sj.Contact((), law, shapes={2: sj.ContactSphere(rho)}, inside=[(1, 2)],
+                           spacing=0.01),
+    )  # fmt: skip
+    tr = sj.simulate(lk, 0.2, solver="tsit5", n_save=21, rtol=1e-5, atol=1e-8)
+    rod = np.where(lk.layout.point_kind == 2)[0]
+    cm = lk.layout.links[1].cm_point
+    g = np.asarray(jax.vmap(lambda q: sj.forward_kinematics(lk, q))(tr.q))
+    for k in range(g.shape[0]):
+        A, x = g[k, rod, :3, 3], g[k, cm, :3, 3]
+        ab = A[1:] - A[:-1]
+        s = np.clip(np.sum((x - A[:-1]) * ab, 1) / np.sum(ab * ab, 1), 0, 1)
+        dist = np.min(np.linalg.norm(x - (A[:-1] + s[:, None] * ab), axis=1))
+        # inside the bore up to the penalty's penetration (load / k ~ 1e-5 m)
+        assert dist <= Ri - rho + 1e-4, (
+            f"ball {dist * 1e3:.2f} mm off the axis at t={tr.t[k]}"
+        )
+    # it went round the bend (the tube turns 0.5 rad over the first 0.17 m)
+    assert g[-1, cm, 1, 3] > 0.04 and g[-1, cm, 0, 3] > 0.15
+    # the wall did guide it
+    assert float(jnp.max(tr.contact.penetration)) > 0

@@ -296,6 +296,7 @@ def _vertex_share(x, first, last):
     add up to 1 and a crossing at a vertex is counted once; no ramp at the rod's
     two ends.
     """
+
     def smoothstep(y):  # 0 below -PAIR_RAMP, 1 above, h(y) + h(-y) = 1, C1
         z = jnp.clip(0.5 + y / (2 * PAIR_RAMP), 0.0, 1.0)
         return z * z * (3.0 - 2.0 * z)
@@ -334,10 +335,14 @@ def _pair_list(linkage: Linkage):
 
 
 def pair_link_b(linkage: Linkage) -> np.ndarray:
-    """Link B of every rod-rod or self-contact row of :class:`ContactState`."""
+    """Link B of every pair row of :class:`ContactState` (rod pairs, then tubes)."""
     out = [
         np.asarray(sb.link)[gb.start[ib]] for _, _, sb, gb, _, ib in _pair_list(linkage)
     ]
+    for tube, body in linkage.contact.inside:
+        n_body = len(link_samples(linkage, body).point)
+        n_seg = len(rod_samples(linkage, tube)[1].start)
+        out.append(np.full(n_body * n_seg, tube))
     return np.concatenate(out) if out else np.zeros(0, int)
 
 
@@ -399,6 +404,80 @@ def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
     return W, rows
 
 
+def link_samples(linkage: Linkage, link_number: int) -> Samples:
+    """A link's contact samples: a soft link's centre-line samples, a rigid shape's."""
+    lay = linkage.layout.links[link_number - 1]
+    if lay.soft:
+        return rod_samples(linkage, link_number)[0]
+    o, r = linkage.contact.shape_of(link_number).points()
+    n = o.shape[0]
+    return Samples(
+        np.full(n, lay.cm_point), np.full(n, link_number), jnp.ones(n, o.dtype), r, o
+    )
+
+
+def _bore_radii(linkage: Linkage, tube: int) -> Array:
+    """Inner radius at each of a tube's samples (its divisions' annular sections)."""
+    contact = linkage.contact
+    link = linkage.links[tube - 1]
+    cells = dict(contact.cells)[tube]
+    out = []
+    for div, n in zip(link.divisions, cells, strict=True):
+        X1 = np.arange(n + 1) / n
+        out.append(jnp.stack([div.section.inner_radius(float(x)) for x in X1]))
+    return jnp.concatenate(out)
+
+
+def _inside_terms(linkage: Linkage, g, eta, friction: bool):
+    """Bodies inside soft tubes: (wrench rows, report rows)."""
+    contact = linkage.contact
+    law = contact.law
+    W = jnp.zeros((g.shape[0], 6), g.dtype)
+    rows = []
+    for tube, body in contact.inside:
+        st, gt = rod_samples(linkage, tube)
+        sb = link_samples(linkage, body)
+        bore = _bore_radii(linkage, tube).astype(g.dtype)
+        Rt, pt, xt, wt, vt_ = _world_points(g, eta, st)
+        Rb, pb, xb, wb, vb = _world_points(g, eta, sb)
+        m = len(gt.start)
+        ib, it = np.meshgrid(np.arange(len(sb.point)), np.arange(m), indexing="ij")
+        ib, it = ib.ravel(), it.ravel()
+        a0, a1 = gt.start[it], gt.end[it]
+        A, B, X = xt[a0], xt[a1], xb[ib]
+        AB = B - A
+        den = jnp.sum(AB * AB, axis=-1)
+        s_line = jnp.sum((X - A) * AB, axis=-1) / jnp.where(den > 0, den, 1.0)
+        s = jnp.clip(s_line, 0.0, 1.0)
+        P = A + s[:, None] * AB
+        rvec = X - P
+        dist = _safe_norm(rvec)
+        n_out = rvec / jnp.maximum(dist, 1e-12)[:, None]  # from the axis outwards
+        r_in = (1 - s) * bore[a0] + s * bore[a1]
+        rho = sb.radius[ib]
+        d = dist + rho - r_in
+        # the wall's share of this segment (0 past the tube's openings too)
+        share = _vertex_share(s_line, np.zeros(len(it), bool), np.zeros(len(it), bool))
+        c_body = X + rho[:, None] * n_out  # the body's point against the wall
+        c_wall = P + r_in[:, None] * n_out
+        v_body = vb[ib] + jnp.cross(wb[ib], c_body - X)
+
+        v0 = vt_[a0] + jnp.cross(wt[a0], c_wall - xt[a0])
+        v1 = vt_[a1] + jnp.cross(wt[a1], c_wall - xt[a1])
+        v_wall = (1 - s)[:, None] * v0 + s[:, None] * v1
+        f, fn, slip = _law_forces(law, d, -n_out, v_body - v_wall, share, friction)
+        W = W.at[sb.point[ib]].add(_point_wrenches(Rb[ib], pb[ib], c_body, f))
+        for idx, lam in ((a0, 1 - s), (a1, s)):
+            W = W.at[st.point[idx]].add(
+                _point_wrenches(Rt[idx], pt[idx], c_wall, -lam[:, None] * f)
+            )
+        energy = jnp.sum(share * law.potential(d))
+        # past a segment's span (share 0) the row reports the bore as its gap
+        gap = jnp.where(share > 0, d, -r_in)
+        rows.append((c_body, -n_out, gap, fn, f, slip, energy, sb.link[ib]))
+    return W, rows
+
+
 def contact_wrenches(linkage: Linkage, t, g, eta=None) -> Array:
     """Body wrenches ``(n_points, 6)`` of every contact; friction only with ``eta``."""
     return _contact(linkage, t, g, eta)[0]
@@ -444,6 +523,12 @@ def _contact(linkage: Linkage, t, g, eta):
         Wp, rp = _pair_terms(contact, pairs, g, eta, friction)
         W = W + Wp
         for r in rp:
+            rows.append(r[:7])
+            labels.append((np.asarray(r[7]), np.full(len(r[7]), -1)))
+    if contact.inside:
+        Wi, ri = _inside_terms(linkage, g, eta, friction)
+        W = W + Wi
+        for r in ri:
             rows.append(r[:7])
             labels.append((np.asarray(r[7]), np.full(len(r[7]), -1)))
     return W, rows, labels

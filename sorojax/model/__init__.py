@@ -75,6 +75,7 @@ from ._profile import (
 from ._section import (
     AbstractSection as AbstractSection,
 )
+from ._section import AnnularSection as AnnularSection
 from ._section import (
     CircularSection as CircularSection,
 )

@@ -517,6 +517,9 @@ class Contact(eqx.Module):
             along the rod than 2.5 times the sum of their radii).
         friction_in_rod_pairs: whether rod-rod contacts carry friction (default
             True; the law's coefficients).
+        inside: pairs ``(tube, body)``: ``body`` (a soft link, or a rigid link
+            with a shape) moves inside soft link ``tube``, whose divisions have an
+            :class:`~sorojax.AnnularSection`, and touches its inner surface.
         tangent_in_w: whether ROS34PW2's W carries the obstacle contacts' stiffness
             and damping (default True: stiff contact and sticking friction then
             do not bound its step; ``benchmarks/contact.py`` measures both).
@@ -531,6 +534,7 @@ class Contact(eqx.Module):
     rod_pairs: tuple[tuple[int, int], ...] = eqx.field(static=True)
     self_contact: tuple[int, ...] = eqx.field(static=True)
     friction_in_rod_pairs: bool = eqx.field(static=True)
+    inside: tuple[tuple[int, int], ...] = eqx.field(static=True)
     tangent_in_w: bool = eqx.field(static=True)
     cells: tuple | None = eqx.field(static=True)  # resolved by the Linkage
 
@@ -545,6 +549,7 @@ class Contact(eqx.Module):
         rod_pairs=(),
         self_contact=(),
         friction_in_rod_pairs: bool = True,
+        inside=(),
         tangent_in_w: bool = True,
         cells: tuple | None = None,
     ):
@@ -590,6 +595,7 @@ class Contact(eqx.Module):
         self.rod_pairs = tuple((int(a), int(b)) for a, b in rod_pairs)
         self.self_contact = tuple(int(i) for i in self_contact)
         self.friction_in_rod_pairs = bool(friction_in_rod_pairs)
+        self.inside = tuple((int(a), int(b)) for a, b in inside)
         self.tangent_in_w = bool(tangent_in_w)
         self.cells = cells
 
@@ -683,6 +689,26 @@ def resolve_contact(contact: Contact, links) -> Contact:
             )
     for i in contact.self_contact:
         check_link("Contact.self_contact entry", i, soft_only=True)
+    for tube, body in contact.inside:
+        check_link("Contact.inside tube", tube, soft_only=True)
+        check_link("Contact.inside body", body)
+        if tube == body:
+            raise ValueError(
+                f"Contact.inside has ({tube}, {body}): a link cannot move inside "
+                "itself; give (tube, body) of two links."
+            )
+        for k, div in enumerate(links[tube - 1].divisions, start=1):
+            if not hasattr(div.section, "inner_radius"):
+                raise ValueError(
+                    f"Contact.inside tube {tube}: its division {k} has a "
+                    f"{type(div.section).__name__}; give the tube's divisions an "
+                    "AnnularSection(outer, inner)."
+                )
+        if isinstance(links[body - 1], RigidLink) and contact.shape_of(body) is None:
+            raise ValueError(
+                f"Contact.inside body {body} is rigid and has no contact shape: give "
+                f"Contact(shapes={{{body}: ContactSphere(r)}})."
+            )
     sampled = set(
         i
         for i in (contact_links(contact, links) if contact.obstacles else ())
@@ -690,6 +716,8 @@ def resolve_contact(contact: Contact, links) -> Contact:
     )
     sampled |= {i for pair in contact.rod_pairs for i in pair}
     sampled |= set(contact.self_contact)
+    sampled |= {t for t, _ in contact.inside}
+    sampled |= {b for _, b in contact.inside if isinstance(links[b - 1], SoftLink)}
     features = [ob.feature_size for ob in contact.obstacles]
     given = dict(contact.cells or ())
     cells = []
@@ -723,6 +751,7 @@ def resolve_contact(contact: Contact, links) -> Contact:
         rod_pairs=contact.rod_pairs,
         self_contact=contact.self_contact,
         friction_in_rod_pairs=contact.friction_in_rod_pairs,
+        inside=contact.inside,
         tangent_in_w=contact.tangent_in_w,
         cells=tuple(cells),
     )

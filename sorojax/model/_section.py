@@ -38,6 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from ._checks import is_concrete
 from ._profile import AbstractProfile, as_profile
 
 TORSION_MODELS = ("saint-venant", "polar")
@@ -319,6 +320,65 @@ class EllipticalSection(_ShapedSection):
     def extent(self, X1):
         """Semi-axes along y and z."""
         return self.a(X1), self.b(X1)
+
+
+class AnnularSection(_ShapedSection):
+    """Hollow circle (a tube wall) between radii ``inner(X1) < outer(X1)``.
+
+    Attributes:
+        outer: profile of the outer radius [m].
+        inner: profile of the inner radius [m] (0 < inner < outer).
+        torsion: ``"saint-venant"`` or ``"polar"`` (the same for a circular tube:
+            J = pi (R^4 - r^4) / 2).
+        shear_coefficient: ``None`` for Cowper's hollow-circle coefficient
+            ``6 (1 + nu) (1 + m^2)^2 / ((7 + 6 nu) (1 + m^2)^2 + (20 + 12 nu) m^2)``,
+            m = r / R (Cowper 1966), or a number in (0, 1.5].
+    """
+
+    outer: AbstractProfile
+    inner: AbstractProfile
+    polar: Array
+    given: Array
+    k: Array
+
+    def __init__(self, outer, inner, *, torsion="saint-venant", shear_coefficient=None):
+        self.outer = as_profile("AnnularSection.outer", outer)
+        self.inner = as_profile("AnnularSection.inner", inner)
+        for x in (0.0, 0.5, 1.0):
+            R, r = self.outer(x), self.inner(x)
+            if is_concrete(R) and is_concrete(r) and not float(r) < float(R):
+                raise ValueError(
+                    f"AnnularSection.inner = {float(r)!r} at X1 = {x} is not below "
+                    f"outer = {float(R)!r}: give 0 < inner < outer [m]."
+                )
+        self.polar, self.given, self.k = _mechanics_arrays(
+            "AnnularSection", torsion, shear_coefficient
+        )
+
+    def properties(self, X1):
+        """``(A, Iy, Iz, Ip)`` of a tube: pi (R^2 - r^2), pi (R^4 - r^4) / 4, ..."""
+        R, r = self.outer(X1), self.inner(X1)
+        I_ = math.pi * (R**4 - r**4) / 4
+        return math.pi * (R**2 - r**2), I_, I_, 2 * I_
+
+    def _saint_venant(self, X1):
+        R, r = self.outer(X1), self.inner(X1)
+        return math.pi * (R**4 - r**4) / 2
+
+    def _cowper(self, X1, poisson):
+        m2 = (self.inner(X1) / self.outer(X1)) ** 2
+        a = (1 + m2) ** 2
+        k = 6 * (1 + poisson) * a / ((7 + 6 * poisson) * a + (20 + 12 * poisson) * m2)
+        return k, k
+
+    def extent(self, X1):
+        """Outer radius along y and z."""
+        R = self.outer(X1)
+        return R, R
+
+    def inner_radius(self, X1):
+        """The bore's radius at ``X1`` [m] (contact on the inner surface)."""
+        return self.inner(X1)
 
 
 class SectionProperties(AbstractSection):

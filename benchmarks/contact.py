@@ -1,0 +1,267 @@
+"""Contact: cost, compile time, W with the contact tangent, stiffness, accuracy.
+
+Five measurements, all in this process (persistent compilation cache off):
+
+1. ``cost``: warm time of one evaluation of the dynamics (``forward_dynamics``: the
+   right-hand side every solver step evaluates once per stage) of a rod resting on a
+   floor with about 10, 100 and 1000 contact samples, against the same rod without
+   contact (the rod's own points: 12). Compile time of each program.
+2. ``compile``: first call of ``simulate`` (0.2 s, ROS34PW2) of the dropped rod with
+   and without its floor: the contact terms' share of the compile.
+3. ``w_tangent``: ROS34PW2 with W = (M, K, D) against W with the contacts' stiffness
+   and damping (``Contact.tangent_in_w``), and Tsit5, on a block held by friction on
+   a 15-degree plane and on a rod dropped onto a floor: steps and warm time.
+4. ``stiffness``: the block on the plane at contact stiffnesses 1e3 .. 1e7 N/m:
+   steps of Tsit5 (explicit: bounded by the contact's frequency) and of ROS34PW2
+   with the contact tangent in W.
+5. ``touchdown``: the heavy cantilever resting on a frictionless floor against the
+   elastica reference (tests/contact_reference.py) as the contact stiffness rises:
+   centre-line error, clamp force error, where the contact zone starts.
+
+Run::
+
+    .venv/bin/python benchmarks/contact.py [--repeats 5]
+
+Writes ``benchmarks/results/contact.json`` and ``benchmarks/results/contact.png``.
+"""
+
+import argparse
+import json
+import sys
+import time
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+jax.config.update("jax_enable_compilation_cache", False)
+
+import equinox as eqx  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+from _common import ROOT, environment, timed  # noqa: E402
+
+import sorojax as sj  # noqa: E402
+
+sys.path.insert(0, str(ROOT / "tests"))
+from contact_reference import heavy_cantilever_on_floor  # noqa: E402
+
+G = 9.81
+
+
+def resting_rod(n_samples: int | None):
+    """A 0.3 m rod (r = 1 cm) on a floor sampled at ``n_samples`` points (None: none)."""
+    rod = sj.SoftLink(
+        [
+            sj.Division(
+                0.3, sj.CircularSection(0.01), sj.LegendreBasis((0, 1, 1, 0, 0, 0), 2)
+            )
+        ],
+        sj.Material(E=1e6, poisson=0.5, rho=1000.0, eta=1e3),
+        joint=sj.Joint("A", axis=(0, 1, 0)),
+    )
+    place = np.eye(4)
+    place[2, 3] = 0.01
+    contact = None
+    if n_samples is not None:
+        law = sj.ContactLaw(stiffness=1e4, smoothing=1e-4, damping=10.0,
+                            static_friction=0.5)  # fmt: skip
+        contact = sj.Contact(sj.Plane(), law, spacing=0.3 / (n_samples - 1))
+    return sj.Linkage(
+        [rod], placements=place[None], gravity=(0, 0, -G), contact=contact
+    )
+
+
+def cost(repeats):
+    out = []
+    fd = eqx.filter_jit(lambda lk, q, qd: sj.forward_dynamics(lk, q, qd))
+    for n in (None, 10, 100, 1000):
+        lk = resting_rod(n)
+        q = jnp.zeros(lk.n_dof)
+        qd = jnp.full(lk.n_dof, 0.01)
+        t0 = time.perf_counter()
+        jax.block_until_ready(fd(lk, q, qd))
+        first = time.perf_counter() - t0
+        med, best = timed(fd, lk, q, qd, repeats=max(repeats, 20))
+        n_contacts = 0 if lk.contact is None else len(sj.contact_state(lk, q).link)
+        out.append(dict(samples=n_contacts, n_points=lk.n_points, n_dof=lk.n_dof,
+                        first_call_s=first, warm_median_s=med, warm_min_s=best))  # fmt: skip
+        print(f"cost: {n_contacts:5d} contacts, {lk.n_points:5d} points: first "
+              f"{first:.2f} s, warm {med * 1e6:.0f} us")  # fmt: skip
+    return out
+
+
+def dropped(contact: bool, tangent: bool = True, stiffness=1e4):
+    lk = resting_rod(31 if contact else None)
+    place = np.eye(4)
+    place[2, 3] = 0.05
+    c = lk.contact
+    if c is not None:
+        law = sj.ContactLaw(stiffness=stiffness, smoothing=1e-4, damping=10.0)
+        c = sj.Contact(c.obstacles, law, spacing=c.spacing, tangent_in_w=tangent)
+    return sj.Linkage(lk.links, placements=place[None], gravity=(0, 0, -G), contact=c)
+
+
+def compile_share():
+    out = {}
+    for contact in (False, True):
+        lk = dropped(contact)
+        q0 = jnp.zeros(lk.n_dof).at[0].set(0.1)
+        t0 = time.perf_counter()
+        sj.simulate(lk, 0.2, q0, solver="ros34pw2", n_save=3)
+        out["with_contact" if contact else "without_contact"] = time.perf_counter() - t0
+    print(f"compile: first simulate {out['without_contact']:.1f} s without contact, "
+          f"{out['with_contact']:.1f} s with")  # fmt: skip
+    return out
+
+
+def block(alpha_deg, stiffness=1e4, tangent=True):
+    alpha = np.radians(alpha_deg)
+    n = np.array([-np.sin(alpha), 0.0, np.cos(alpha)])
+    c, s = np.cos(alpha), np.sin(alpha)
+    place = np.eye(4)
+    place[:3, :3] = np.array([[c, 0, -s], [0, 1, 0], [s, 0, c]])
+    place[:3, 3] = n * 0.01
+    body = sj.RigidLink(sj.Joint("F"), length=0.04, mass=0.1,
+                        inertia=np.diag([1e-5] * 3), g_i=np.eye(4), g_f=np.eye(4))  # fmt: skip
+    law = sj.ContactLaw(stiffness=stiffness, smoothing=1e-5,
+                        damping=2 * np.sqrt(stiffness * 0.1 / 4),
+                        static_friction=0.5, stick_velocity=1e-3)  # fmt: skip
+    contact = sj.Contact(sj.Plane(normal=n), law,
+                         shapes={1: sj.ContactBox((0.02, 0.02, 0.01))},
+                         tangent_in_w=tangent)  # fmt: skip
+    return sj.Linkage([body], placements=place[None], gravity=(0, 0, -G),
+                      contact=contact)  # fmt: skip
+
+
+def run_sim(lk, q0, t1, solver, repeats):
+    kw = dict(solver=solver, n_save=11, rtol=1e-5, atol=1e-8, max_steps=400_000,
+              throw=False)  # fmt: skip
+    t0 = time.perf_counter()
+    tr = sj.simulate(lk, t1, q0, **kw)
+    first = time.perf_counter() - t0
+    med, _ = timed(lambda: sj.simulate(lk, t1, q0, **kw).q, repeats=repeats,
+                   warmup=False)  # fmt: skip
+    return dict(steps=int(tr.num_steps), result=int(tr.result._value),
+                first_call_s=first, warm_median_s=med)  # fmt: skip
+
+
+def w_tangent(repeats):
+    out = []
+    cases = [
+        ("block_15deg_held", lambda tw: block(15.0, tangent=tw),
+         lambda lk: jnp.zeros(lk.n_dof), 1.0),
+        ("rod_dropped", lambda tw: dropped(True, tw),
+         lambda lk: jnp.zeros(lk.n_dof).at[0].set(0.1), 1.0),
+    ]  # fmt: skip
+    for name, make, q0f, t1 in cases:
+        for solver, tw in (("ros34pw2", False), ("ros34pw2", True), ("tsit5", False)):
+            lk = make(tw)
+            r = run_sim(lk, q0f(lk), t1, solver, repeats)
+            label = solver + (" + contact W" if tw else "")
+            out.append(dict(scene=name, solver=label) | r)
+            print(f"W: {name:18s} {label:22s} {r['steps']:7d} steps, warm "
+                  f"{r['warm_median_s']:.3f} s")  # fmt: skip
+    return out
+
+
+def stiffness(repeats):
+    out = []
+    for k in (1e3, 1e4, 1e5, 1e6, 1e7):
+        for solver in ("tsit5", "ros34pw2"):
+            lk = block(15.0, stiffness=k)
+            r = run_sim(lk, jnp.zeros(lk.n_dof), 0.5, solver, 1)
+            out.append(dict(stiffness=k, solver=solver) | r)
+            print(f"stiffness {k:8.0e} N/m {solver:9s}: {r['steps']:7d} steps, "
+                  f"result {r['result']}, warm {r['warm_median_s']:.3f} s")  # fmt: skip
+    return out
+
+
+def touchdown():
+    L, EI, w, d, r = 1.0, 0.05, 1.0, 0.05, 0.01
+    ref = heavy_cantilever_on_floor(L, EI, w, d)
+    out = []
+    for k in (1e4, 1e5, 1e6, 1e7):
+        divs = [sj.Division(L / 4, sj.CircularSection(r),
+                            sj.LegendreBasis((0, 1, 0, 0, 0, 0), 3)) for _ in range(4)]  # fmt: skip
+        rod = sj.SoftLink(divs, sj.Material(E=EI / (np.pi * r**4 / 4), poisson=0.5,
+                                            rho=w / (np.pi * r**2 * G)))  # fmt: skip
+        place = np.eye(4)
+        place[2, 3] = d + r
+        lk = sj.Linkage([rod], placements=place[None], gravity=(0, 0, -G),
+                        contact=sj.Contact(sj.Plane(),
+                                           sj.ContactLaw(stiffness=k, smoothing=1e-7),
+                                           spacing=0.01))  # fmt: skip
+        sol = sj.solve_statics(lk, max_steps=200, throw=False)
+        g = np.asarray(sj.forward_kinematics(lk, sol.q))
+        lay = lk.layout
+        pts = np.where(lay.point_kind == 2)[0]
+        s = (lay.point_division[pts] - 1 + lay.point_X1[pts]) * L / 4
+        err = np.max(np.hypot(g[pts, 0, 3] - np.interp(s, ref["s"], ref["x"]),
+                              g[pts, 2, 3] - np.interp(s, ref["s"], ref["z"]) - r))  # fmt: skip
+        cs = sol.contact
+        fz = w * L - float(cs.total_force()[2])
+        on = np.asarray(cs.penetration) > 0
+        start = float(np.min(np.asarray(cs.point)[on, 0]))
+        row = dict(stiffness=k, result=int(sol.result._value), newton=int(sol.num_steps),
+                   shape_error_L=err / L,
+                   clamp_force_rel_error=abs(fz / ref["clamp_force"][1] - 1),
+                   contact_start_x=start, touchdown_a=ref["a"])  # fmt: skip
+        out.append(row)
+        print(f"touchdown k={k:8.0e}: shape {err / L:.2e} L, clamp force "
+              f"{row['clamp_force_rel_error']:.1e}, contact from x = {start:.4f} "
+              f"(rigid floor: touchdown a = {ref['a']:.4f}), {row['newton']} Newton")  # fmt: skip
+    return out
+
+
+def chart(res, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 3, figsize=(13, 3.8))
+    c = res["cost"]
+    ax[0].plot([r["samples"] for r in c[1:]], [r["warm_median_s"] * 1e6 for r in c[1:]],
+               "o-", label="with contact")  # fmt: skip
+    ax[0].axhline(c[0]["warm_median_s"] * 1e6, color="k", ls="--", label="no contact")
+    ax[0].set(xscale="log", yscale="log", xlabel="contact samples",
+              ylabel="one dynamics evaluation [us]", title="cost")  # fmt: skip
+    ax[0].legend()
+    st = res["stiffness"]
+    for solver in ("tsit5", "ros34pw2"):
+        rows = [r for r in st if r["solver"] == solver]
+        ax[1].plot([r["stiffness"] for r in rows], [r["steps"] for r in rows], "o-",
+                   label=solver + (" (contact in W)" if solver == "ros34pw2" else ""))  # fmt: skip
+    ax[1].set(xscale="log", yscale="log", xlabel="contact stiffness [N/m]",
+              ylabel="steps for 0.5 s", title="block held on a 15 deg plane")  # fmt: skip
+    ax[1].legend()
+    td = res["touchdown"]
+    ax[2].plot([r["stiffness"] for r in td], [r["shape_error_L"] for r in td], "o-",
+               label="centre line (max) / L")  # fmt: skip
+    ax[2].plot([r["stiffness"] for r in td], [r["clamp_force_rel_error"] for r in td],
+               "s-", label="clamp force (rel.)")  # fmt: skip
+    ax[2].set(xscale="log", yscale="log", xlabel="contact stiffness [N/m^2]",
+              title="heavy cantilever on a floor vs elastica")  # fmt: skip
+    ax[2].legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def main():
+    p = argparse.ArgumentParser()
+    p.add_argument("--repeats", type=int, default=5)
+    a = p.parse_args()
+    res = dict(environment=environment())
+    res["cost"] = cost(a.repeats)
+    res["compile"] = compile_share()
+    res["w_tangent"] = w_tangent(a.repeats)
+    res["stiffness"] = stiffness(a.repeats)
+    res["touchdown"] = touchdown()
+    out = ROOT / "benchmarks" / "results" / "contact.json"
+    out.write_text(json.dumps(res, indent=1))
+    chart(res, ROOT / "benchmarks" / "results" / "contact.png")
+    print("wrote", out)
+
+
+if __name__ == "__main__":
+    main()
