@@ -105,7 +105,7 @@ HALF = np.array([0.02, 0.02, 0.01])
 MASS = 0.1
 
 
-def incline(alpha):
+def incline(alpha, mu=MU):
     """A rigid block (free joint, box contact shape) resting on a plane at alpha."""
     n = np.array([-np.sin(alpha), 0.0, np.cos(alpha)])
     c, s = np.cos(alpha), np.sin(alpha)
@@ -118,7 +118,7 @@ def incline(alpha):
         g_i=np.eye(4), g_f=np.eye(4),
     )  # fmt: skip
     law = sj.ContactLaw(
-        stiffness=1e4, smoothing=1e-5, damping=20.0, static_friction=MU,
+        stiffness=1e4, smoothing=1e-5, damping=20.0, static_friction=mu,
         stick_velocity=1e-3,
     )  # fmt: skip
     contact = sj.Contact(sj.Plane(normal=n), law, shapes={1: sj.ContactBox(HALF)})
@@ -149,6 +149,30 @@ def test_block_on_incline_sticks_or_slides(alpha_deg):
         a_exact = G * (np.sin(alpha) - MU * np.cos(alpha))
         # Coulomb sliding: mu is the kinetic one far above the Stribeck speed
         np.testing.assert_allclose(a, a_exact, rtol=0.02)
+
+
+def test_sliding_gradient_through_the_contact_dynamics():
+    """d(slide distance)/d(mu) by forward mode through simulate: central differences
+    and the Coulomb law's own derivative, -g cos(alpha) T^2 / 2."""
+    import diffrax
+
+    alpha, T = np.radians(35.0), 0.3
+
+    def slide(mu):
+        lk = incline(alpha, mu)
+        tr = sj.simulate(lk, T, solver="ros34pw2", dt0=1e-3, adaptive=False, n_save=2,
+                         adjoint=diffrax.ForwardMode())  # fmt: skip
+        x = sj.forward_kinematics(lk, tr.q[-1])[1, :3, 3]
+        return -(x[0] * np.cos(alpha) + x[2] * np.sin(alpha))  # downhill
+
+    value, deriv = jax.jvp(slide, (jnp.asarray(MU),), (jnp.asarray(1.0),))
+    h = 1e-4
+    fd = (slide(MU + h) - slide(MU - h)) / (2 * h)
+    # fixed steps: a smooth function of mu, central differences exact to ~h^2
+    np.testing.assert_allclose(float(deriv), float(fd), rtol=1e-6)
+    # Coulomb sliding from rest (the block settles on its contact in ~ms)
+    np.testing.assert_allclose(float(deriv), -G * np.cos(alpha) * T**2 / 2, rtol=0.02)
+    assert float(value) > 0
 
 
 # ------------------------------------------------------- drop with contact damping

@@ -579,14 +579,19 @@ def simulate(
         # and compiled in a thread while the integration compiles and runs (their
         # first call waits for it; manual hybrid example 1.7 s of trace, lowering
         # and -O0 compile taken off its path).
-        ahead = (
+        ahead = [
             _saved_inputs.compile_ahead(*plan.inputs_args) if plan.separate else None
-        )
+        ]
+        if linkage.contact is not None:  # the contact report's program likewise
+            ahead.append(
+                trajectory_contacts.compile_ahead(linkage, *plan.inputs_args[1:4])
+            )
+        ahead = [f for f in ahead if f is not None]
         try:
             traj = _simulate(*plan.args)
         finally:  # the thread traces under _errors_as_nans too
-            if ahead is not None:
-                concurrent.futures.wait([ahead])
+            if ahead:
+                concurrent.futures.wait(ahead)
         if plan.separate:
             _, _, _, _, u_fn, u_const, gf = plan.inputs_args
             inputs = _saved_inputs(linkage, traj.t, traj.q, traj.qd, u_fn, u_const, gf)
@@ -738,6 +743,8 @@ def prepare_simulate(*args, **kwargs) -> concurrent.futures.Future | None:
         future = _simulate.prepare(*plan.args)
     if plan.separate:
         _saved_inputs.prepare(*plan.inputs_args)
+    if plan.args[0].contact is not None:
+        trajectory_contacts.prepare(plan.args[0], *plan.inputs_args[1:4])
     return future
 
 

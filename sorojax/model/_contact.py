@@ -510,7 +510,8 @@ class Contact(eqx.Module):
         spacing: largest distance between a soft link's samples [m]; default the
             smallest of the link's radius and the obstacles' radii of curvature
             (so that a 1 cm rod and a 1 cm sphere cannot miss each other by more
-            than 7 % of the radius), with at least 4 cells per division.
+            than 7 % of the radius), with at least 4 and at most 400 cells per
+            division (a given spacing is not capped).
         rod_pairs: pairs ``(a, b)`` of soft links checked against each other
             (segment-segment closest points).
         self_contact: soft links checked against themselves (segments further apart
@@ -736,10 +737,11 @@ def resolve_contact(contact: Contact, links) -> Contact:
                     old[k] if old is not None and len(old) > k else DEFAULT_TRACED_CELLS
                 )
                 continue
-            h = contact.spacing
-            if h is None:
+            n_cells = max(MIN_CELLS, math.ceil(L / (contact.spacing or 1.0) - 1e-9))
+            if contact.spacing is None:  # the default: capped at MAX_CELLS
                 h = min([min(radii), *features])  # type: ignore[type-var]
-            per_div.append(int(min(MAX_CELLS, max(MIN_CELLS, math.ceil(L / h - 1e-9)))))
+                n_cells = min(MAX_CELLS, max(MIN_CELLS, math.ceil(L / h - 1e-9)))
+            per_div.append(int(n_cells))
         cells.append((i, tuple(per_div)))
     return Contact(
         contact.obstacles,
