@@ -191,8 +191,11 @@ class ContactState(eqx.Module):
 
 
 # ------------------------------------------------------------------------- kernels
-def _law_forces(law, d, n, v_rel, weight, friction: bool):
-    """Force on the robot (world) from penetration, normal and relative velocity."""
+def _law_forces(law, d, n, v_rel, weight, friction: bool, axis=None):
+    """Force on the robot (world) from penetration, normal and relative velocity.
+
+    ``axis``: (n, 3) body axes of anisotropic friction (``law.forward_friction``).
+    """
     vn = jnp.sum(v_rel * n, axis=-1)
     vt = v_rel - vn[:, None] * n
     f_el = law.normal_force(d)
@@ -202,7 +205,16 @@ def _law_forces(law, d, n, v_rel, weight, friction: bool):
         speed2 = jnp.sum(vt * vt, axis=-1)
         speed = jnp.sqrt(speed2 + law.stick_velocity**2)
         mu = law.friction_coefficient(jnp.sqrt(speed2 + 1e-30))
-        f = f - (mu * f_el / speed)[:, None] * vt
+        resist = (mu * f_el / speed)[:, None] * vt
+        if law.forward_friction is not None and axis is not None:
+            # the slip along the body axis (in the tangent plane) meets mu_f forward
+            e = axis - jnp.sum(axis * n, axis=-1)[:, None] * n
+            e = e / jnp.maximum(_safe_norm(e), 1e-12)[:, None]
+            v_ax = jnp.sum(vt * e, axis=-1)
+            w = 0.5 * (1.0 + jnp.tanh(v_ax / law.stick_velocity))
+            mu_ax = w * law.forward_friction + (1.0 - w) * mu
+            resist = resist + ((mu_ax - mu) * f_el * v_ax / speed)[:, None] * e
+        f = f - resist
     return weight[:, None] * f, weight * fn, vt
 
 
@@ -243,7 +255,9 @@ def _obstacle_terms(contact: Contact, samples: Samples, g, eta, t, friction: boo
         x_c = x - samples.radius[:, None] * n
         v_obs = ((x_c - pG[None]) @ RG) @ Gd[:3, :3].T + Gd[None, :3, 3]
         v_rel = v + jnp.cross(w, x_c - x) - v_obs
-        f, fn, vt = _law_forces(law, d, n, v_rel, samples.weight, friction)
+        f, fn, vt = _law_forces(
+            law, d, n, v_rel, samples.weight, friction, axis=R[:, :, 0]
+        )
         W = W.at[samples.point].add(_point_wrenches(R, p, x_c, f))
         energy = jnp.sum(samples.weight * law.potential(d))
         rows.append((x_c, n, d, fn, f, vt, energy))

@@ -94,6 +94,12 @@ class ContactLaw(eqx.Module):
             to its limit. Smaller holds better and is stiffer to integrate.
         stribeck_velocity: [m/s] > 0, the slip speed over which mu goes from
             mu_s to mu_k (``mu = mu_k + (mu_s - mu_k) / (1 + (v / v_str)^2)``).
+        forward_friction: optional mu_f >= 0 for slip along the body's +x axis
+            (a rod's tangent, a rigid link's CM-frame x) on an obstacle: anisotropic
+            friction, as scales or bristles give (a crawler, a snake). The slip's
+            component along that axis meets ``w mu_f + (1 - w) mu`` with
+            ``w = (1 + tanh(v_x / v_s)) / 2`` (mu_f forward, mu backward), the rest
+            of the slip mu. None: isotropic.
     """
 
     stiffness: Float[Array, ""]
@@ -103,6 +109,7 @@ class ContactLaw(eqx.Module):
     kinetic_friction: Float[Array, ""]
     stick_velocity: Float[Array, ""]
     stribeck_velocity: Float[Array, ""]
+    forward_friction: Float[Array, ""] | None
 
     def __init__(
         self,
@@ -113,6 +120,7 @@ class ContactLaw(eqx.Module):
         kinetic_friction: ArrayLike | None = None,
         stick_velocity: ArrayLike = 1e-3,
         stribeck_velocity: ArrayLike = 1e-2,
+        forward_friction: ArrayLike | None = None,
     ):
         self.stiffness = _scalar("ContactLaw.stiffness", stiffness, True)
         self.smoothing = _scalar("ContactLaw.smoothing", smoothing, True)
@@ -128,6 +136,11 @@ class ContactLaw(eqx.Module):
         self.stick_velocity = _scalar("ContactLaw.stick_velocity", stick_velocity, True)
         self.stribeck_velocity = _scalar(
             "ContactLaw.stribeck_velocity", stribeck_velocity, True
+        )
+        self.forward_friction = (
+            None
+            if forward_friction is None
+            else _scalar("ContactLaw.forward_friction", forward_friction, False)
         )
 
     def normal_force(self, d: Array) -> Array:
