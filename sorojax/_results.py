@@ -21,6 +21,11 @@ class RESULTS(eqx.Enumeration):
         "The nonlinear solver diverged or produced non-finite values."
     )
     singular = "A linear solve met a singular matrix."
+    contact_too_deep = (
+        "A contact's penetration exceeds the smallest contact radius: a body went "
+        "into (or started inside) an obstacle or another body. Start it outside, "
+        "raise ContactLaw.stiffness, or take smaller steps."
+    )
     failed = "The solver failed (see the underlying optimistix/diffrax result)."
 
 

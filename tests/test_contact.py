@@ -83,6 +83,17 @@ def test_floor_penetration_follows_the_law(floor_solution):
     np.testing.assert_allclose(float(sol.q[0]), -d[0], rtol=1e-9)
 
 
+def test_rod_started_deep_in_the_floor_is_reported():
+    """A rod whose centre line starts 3 radii below the floor: a result code."""
+    lk = floor_rod()
+    lk = sj.Linkage(lk.links, placements=_pose(-3 * R_ROD)[None], gravity=(0, 0, -G),
+                    contact=lk.contact)  # fmt: skip
+    sol = sj.solve_statics(lk, throw=False)
+    assert sol.result == sj.RESULTS.contact_too_deep
+    with pytest.raises(RuntimeError, match="penetration exceeds"):
+        sj.solve_statics(lk)
+
+
 def test_floor_gradient_matches_finite_differences(floor_solution):
     """d(drop)/d(density) through the statics with contact (implicit derivative)."""
 

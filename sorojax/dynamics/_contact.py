@@ -25,6 +25,7 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from .._jit import jit
+from .._results import RESULTS
 from ..kinematics._api import _as_q
 from ..model._contact import Contact, _safe_norm, contact_links, soft_radius
 from ..model._linkage import Linkage
@@ -238,6 +239,24 @@ def _world_points(g, eta, samples: Samples):
     return R, p, x, jnp.einsum("nij,nj->ni", R, w_b), jnp.einsum("nij,nj->ni", R, v_b)
 
 
+def _against_obstacle(ob, t, x, w, v, radius):
+    """``(n, d, x_c, v_rel)`` of spheres against obstacle ``ob`` at time ``t``.
+
+    The spheres: centres ``x``, spins ``w``, velocities ``v`` (world). ``n``: unit
+    normal out of the obstacle; ``d``: penetration; ``x_c``: the spheres' surface
+    points towards it; ``v_rel``: their velocity relative to the obstacle there.
+    """
+    G, Gd = ob.frame(t)
+    RG, pG = G[:3, :3], G[:3, 3]
+    xl = (x - pG[None]) @ RG
+    phi, grad = jax.vmap(jax.value_and_grad(ob.distance))(xl)
+    n = grad @ RG.T
+    n = n / jnp.maximum(_safe_norm(n), 1e-12)[:, None]
+    x_c = x - radius[:, None] * n
+    v_obs = ((x_c - pG[None]) @ RG) @ Gd[:3, :3].T + Gd[None, :3, 3]
+    return n, radius - phi, x_c, v + jnp.cross(w, x_c - x) - v_obs
+
+
 def _obstacle_terms(contact: Contact, samples: Samples, g, eta, t, friction: bool):
     """Per obstacle: (wrench rows, report rows) of every sample."""
     law = contact.law
@@ -245,16 +264,7 @@ def _obstacle_terms(contact: Contact, samples: Samples, g, eta, t, friction: boo
     W = jnp.zeros((g.shape[0], 6), g.dtype)
     rows = []
     for ob in contact.obstacles:
-        G, Gd = ob.frame(t)
-        RG, pG = G[:3, :3], G[:3, 3]
-        xl = (x - pG[None]) @ RG
-        phi, grad = jax.vmap(jax.value_and_grad(ob.distance))(xl)
-        n = grad @ RG.T
-        n = n / jnp.maximum(_safe_norm(n), 1e-12)[:, None]
-        d = samples.radius - phi
-        x_c = x - samples.radius[:, None] * n
-        v_obs = ((x_c - pG[None]) @ RG) @ Gd[:3, :3].T + Gd[None, :3, 3]
-        v_rel = v + jnp.cross(w, x_c - x) - v_obs
+        n, d, x_c, v_rel = _against_obstacle(ob, t, x, w, v, samples.radius)
         f, fn, vt = _law_forces(
             law, d, n, v_rel, samples.weight, friction, axis=R[:, :, 0]
         )
@@ -505,7 +515,11 @@ def contact_wrenches_and_penetrations(linkage: Linkage, t, g) -> tuple[Array, Ar
 
 
 def smallest_radius(linkage: Linkage) -> Array:
-    """The smallest contact radius of the scene's samples [m] (inf if none)."""
+    """The smallest positive contact radius of the scene's samples [m] (inf if none).
+
+    Point samples (a box's corners, radius 0) are left out: how deep they may go
+    is not a radius.
+    """
     contact = linkage.contact
     assert contact is not None
     radii = [obstacle_samples(linkage).radius] if contact.obstacles else []
@@ -516,7 +530,8 @@ def smallest_radius(linkage: Linkage) -> Array:
     radii = [r for r in radii if r.shape[0]]
     if not radii:
         return jnp.asarray(jnp.inf)
-    return jnp.min(jnp.concatenate(radii))
+    r = jnp.concatenate(radii)
+    return jnp.min(jnp.where(r > 0, r, jnp.inf))
 
 
 def _contact(linkage: Linkage, t, g, eta):
@@ -610,12 +625,20 @@ def state_from_data(linkage: Linkage, data, q, qd, t) -> ContactState:
 
 
 @jit
-def trajectory_contacts(linkage: Linkage, t, q, qd) -> ContactState:
-    """Contact states at a trajectory's save times (leading axis: time)."""
+def trajectory_contacts(linkage: Linkage, t, q, qd, result):
+    """Contact states at a trajectory's save times (leading axis: time).
+
+    Also ``result``, turned into ``RESULTS.contact_too_deep`` where a successful
+    run went deeper than the smallest contact radius.
+    """
     data = precompute(linkage)
-    return jax.vmap(lambda t_, q_, qd_: state_from_data(linkage, data, q_, qd_, t_))(
+    states = jax.vmap(lambda t_, q_, qd_: state_from_data(linkage, data, q_, qd_, t_))(
         t, q, qd
     )
+    pen = jnp.where(jnp.isfinite(states.penetration), states.penetration, -jnp.inf)
+    deep = jnp.max(pen, initial=-jnp.inf) > smallest_radius(linkage)
+    ok = result == RESULTS.successful
+    return states, RESULTS.where(deep & ok, RESULTS.contact_too_deep, result)
 
 
 @jit
@@ -652,16 +675,7 @@ def contact_tangent(linkage: Linkage, t, g, J, eta) -> tuple[Array, Array]:
     R, p, x, w, v = _world_points(g, eta, samples)
     Jp = J[samples.point]  # (n, 6, n_dof) body Jacobians
     for ob in contact.obstacles:
-        G, Gd = ob.frame(t)
-        RG, pG = G[:3, :3], G[:3, 3]
-        xl = (x - pG[None]) @ RG
-        phi, grad = jax.vmap(jax.value_and_grad(ob.distance))(xl)
-        n = grad @ RG.T
-        n = n / jnp.maximum(_safe_norm(n), 1e-12)[:, None]
-        d = samples.radius - phi
-        x_c = x - samples.radius[:, None] * n
-        v_obs = ((x_c - pG[None]) @ RG) @ Gd[:3, :3].T + Gd[None, :3, 3]
-        v_rel = v + jnp.cross(w, x_c - x) - v_obs
+        n, d, x_c, v_rel = _against_obstacle(ob, t, x, w, v, samples.radius)
         a_b = jnp.einsum("nji,nj->ni", R, x_c - p)
         # v_c = R (v_b + w_b x a_b) = R (J_v - [a_b]x J_w) qd
         Jc = jnp.einsum(

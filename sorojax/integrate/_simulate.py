@@ -584,7 +584,9 @@ def simulate(
         ]
         if linkage.contact is not None:  # the contact report's program likewise
             ahead.append(
-                trajectory_contacts.compile_ahead(linkage, *plan.inputs_args[1:4])
+                trajectory_contacts.compile_ahead(
+                    linkage, *plan.inputs_args[1:4], RESULTS.successful
+                )
             )
         ahead = [f for f in ahead if f is not None]
         try:
@@ -602,10 +604,13 @@ def simulate(
                 is_leaf=lambda x: x is None,
             )
         if linkage.contact is not None:
+            states, result = trajectory_contacts(
+                linkage, traj.t, traj.q, traj.qd, traj.result
+            )
             traj = eqx.tree_at(
-                lambda tr: tr.contact,
+                lambda tr: (tr.contact, tr.result),
                 traj,
-                trajectory_contacts(linkage, traj.t, traj.q, traj.qd),
+                (states, result),
                 is_leaf=lambda x: x is None,
             )
     if not throw:
@@ -744,7 +749,9 @@ def prepare_simulate(*args, **kwargs) -> concurrent.futures.Future | None:
     if plan.separate:
         _saved_inputs.prepare(*plan.inputs_args)
     if plan.args[0].contact is not None:
-        trajectory_contacts.prepare(plan.args[0], *plan.inputs_args[1:4])
+        trajectory_contacts.prepare(
+            plan.args[0], *plan.inputs_args[1:4], RESULTS.successful
+        )
     return future
 
 

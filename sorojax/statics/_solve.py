@@ -51,6 +51,7 @@ from ..dynamics._external import custom_wrenches, external_wrenches
 from ..dynamics._generalized import kinematics_from_data
 from ..dynamics._wrench_recursion import force_from_wrenches, poses_with_records
 from ..kinematics._api import _as_q
+from ..kinematics._recursion import poses
 from ..model._linkage import Linkage
 from ..model._precompute import LinkageData, precompute
 from ._stability import (
@@ -482,14 +483,13 @@ def _solve_statics(
     x0 = jnp.concatenate([q0[free], jnp.zeros(n_c, q0.dtype)])
     args = (data, u, dyn, q_p0, t)
     # no Newton step makes a contact deeper than this (or 8 times its depth)
-    contact_cap = (
-        None
-        if linkage.contact is None
-        else jnp.maximum(
-            10.0 * linkage.contact.law.smoothing,
-            1e-3 * smallest_radius(linkage),
+    contact_cap = None
+    if linkage.contact is not None:
+        r_min = smallest_radius(linkage)
+        contact_cap = 10.0 * linkage.contact.law.smoothing
+        contact_cap = jnp.where(
+            jnp.isfinite(r_min), jnp.maximum(contact_cap, 1e-3 * r_min), contact_cap
         )
-    )
     contact_cap = jax.lax.stop_gradient(contact_cap)
     one = jnp.ones((), q0.dtype)
 
@@ -578,6 +578,19 @@ def _solve_statics(
     eigenvalues, _, n_manifold = reduced_tangent_spectrum(
         J, nf, jax.lax.stop_gradient(_row_scale(data.K)[free])
     )
+    contact = None
+    if linkage.contact is not None:
+        # the start and the solution: no centre line inside what it touches
+        contact = state_from_data(linkage, data, q, None, t)
+        start = contact_wrenches_and_penetrations(linkage, t, poses(data, q0))[1]
+        deepest = jnp.maximum(
+            jnp.max(contact.penetration, initial=-jnp.inf),
+            jnp.max(start, initial=-jnp.inf),
+        )
+        deep = deepest > smallest_radius(jax.lax.stop_gradient(linkage))
+        result = RESULTS.where(
+            deep & (result == RESULTS.successful), RESULTS.contact_too_deep, result
+        )
     stable, n_negative, lam_min = stability_summary(eigenvalues, n_manifold)
     stable = stable & (result == RESULTS.successful)  # no verdict on a failed solve
     return StaticsSolution(
@@ -592,9 +605,7 @@ def _solve_statics(
         stable=stable,
         n_negative=n_negative,
         min_eigenvalue=lam_min,
-        contact=None
-        if linkage.contact is None
-        else state_from_data(linkage, data, q, None, t),
+        contact=contact,
     )
 
 
