@@ -431,3 +431,35 @@ def test_sphere_pushed_through_a_curved_tube_stays_inside():
     assert g[-1, cm, 1, 3] > 0.04 and g[-1, cm, 0, 3] > 0.15
     # the wall did guide it
     assert float(jnp.max(tr.contact.penetration)) > 0
+
+
+def test_ball_resting_on_a_cantilever_carries_its_weight():
+    """A rigid ball (its contact sphere) against a soft rod's segments: the rod
+    carries the ball's weight through the contact (statics, frictionless)."""
+    r, rho_b, m = 0.01, 0.02, 0.01
+    rod = sj.SoftLink(
+        [
+            sj.Division(
+                0.3, sj.CircularSection(r), sj.LegendreBasis((0, 1, 1, 0, 0, 0), 2)
+            )
+        ],
+        sj.Material(E=1e7, poisson=0.5, rho=1000.0),
+    )
+    ball = sj.RigidLink(sj.Joint("P", axis=(0, 0, 1)), length=0.01, mass=m,
+                        inertia=np.diag([1e-7] * 3), g_i=np.eye(4), g_f=np.eye(4))  # fmt: skip
+    place = np.stack([np.eye(4), _pose(r + rho_b)])
+    place[1, 0, 3] = 0.2
+    law = sj.ContactLaw(stiffness=1e4, smoothing=1e-7)
+    lk = sj.Linkage(
+        [rod, ball], parents=(0, 0), placements=place, gravity=(0, 0, -G),
+        contact=sj.Contact((), law, shapes={2: sj.ContactSphere(rho_b)},
+                           rod_pairs=[(1, 2)], spacing=0.02),
+    )  # fmt: skip
+    sol = sj.solve_statics(lk)
+    cs = sol.contact
+    # the ball's joint carries nothing vertical: the contact holds its weight
+    np.testing.assert_allclose(float(jnp.sum(cs.force[:, 2])), m * G, rtol=1e-6)
+    # penetration of the per-point law: weight / k = 1e-5 m
+    np.testing.assert_allclose(float(jnp.max(cs.penetration)), m * G / 1e4, rtol=0.1)
+    # the rod bends down under it
+    assert float(sj.tip_pose(lk, sol.q, 1)[2, 3]) < -1e-2

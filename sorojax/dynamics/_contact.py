@@ -334,7 +334,10 @@ def _pair_list(linkage: Linkage):
     """Static list of (link A, link B, index pairs) for rod pairs and self-contact."""
     contact = linkage.contact
     out = []
+    soft = [lay.soft for lay in linkage.layout.links]
     for a, b in contact.rod_pairs:
+        if not (soft[a - 1] and soft[b - 1]):
+            continue  # a rigid shape against a rod: _sphere_rod_terms
         sa, ga = rod_samples(linkage, a)
         sb, gb = rod_samples(linkage, b)
         ia, ib = np.meshgrid(
@@ -363,10 +366,10 @@ def pair_link_b(linkage: Linkage) -> np.ndarray:
     out = [
         np.asarray(sb.link)[gb.start[ib]] for _, _, sb, gb, _, ib in _pair_list(linkage)
     ]
-    for tube, body in linkage.contact.inside:
+    for rod, body, _ in sphere_rod_pairs(linkage):
         n_body = len(link_samples(linkage, body).point)
-        n_seg = len(rod_samples(linkage, tube)[1].start)
-        out.append(np.full(n_body * n_seg, tube))
+        n_seg = len(rod_samples(linkage, rod)[1].start)
+        out.append(np.full(n_body * n_seg, rod))
     return np.concatenate(out) if out else np.zeros(0, int)
 
 
@@ -452,16 +455,35 @@ def _bore_radii(linkage: Linkage, tube: int) -> Array:
     return jnp.concatenate(out)
 
 
-def _inside_terms(linkage: Linkage, g, eta, friction: bool):
-    """Bodies inside soft tubes: (wrench rows, report rows)."""
+def sphere_rod_pairs(linkage: Linkage) -> tuple[tuple[int, int, bool], ...]:
+    """``(rod, body, inside)``: bodies in soft tubes, then rigid shapes against rods."""
+    contact = linkage.contact
+    out = [(tube, body, True) for tube, body in contact.inside]
+    for a, b in contact.rod_pairs:
+        if not linkage.layout.links[a - 1].soft:
+            out.append((b, a, False))
+        elif not linkage.layout.links[b - 1].soft:
+            out.append((a, b, False))
+    return tuple(out)
+
+
+def _sphere_rod_terms(linkage: Linkage, g, eta, friction: bool):
+    """A body's spheres against a soft rod's segments: (wrench rows, report rows).
+
+    Inside a tube the spheres touch the bore (``d = dist + rho - r_in``, pushed
+    towards the axis); outside, the rod's surface (``d = rho + r - dist``, pushed
+    away). Each sphere-segment pair has the segment's smooth share of the contact
+    (:func:`_vertex_share`); a tube's openings end its wall, a rod's ends are
+    rounded.
+    """
     contact = linkage.contact
     law = contact.law
     W = jnp.zeros((g.shape[0], 6), g.dtype)
     rows = []
-    for tube, body in contact.inside:
-        st, gt = rod_samples(linkage, tube)
+    for rod, body, inside in sphere_rod_pairs(linkage):
+        st, gt = rod_samples(linkage, rod)
         sb = link_samples(linkage, body)
-        bore = _bore_radii(linkage, tube).astype(g.dtype)
+        wall = (_bore_radii(linkage, rod) if inside else st.radius).astype(g.dtype)
         Rt, pt, xt, wt, vt_ = _world_points(g, eta, st)
         Rb, pb, xb, wb, vb = _world_points(g, eta, sb)
         m = len(gt.start)
@@ -477,28 +499,33 @@ def _inside_terms(linkage: Linkage, g, eta, friction: bool):
         rvec = X - P
         dist = _safe_norm(rvec)
         n_out = rvec / jnp.maximum(dist, 1e-12)[:, None]  # from the axis outwards
-        r_in = (1 - s) * bore[a0] + s * bore[a1]
+        r_w = (1 - s) * wall[a0] + s * wall[a1]
         rho = sb.radius[ib]
-        d = dist + rho - r_in
-        # the wall's share of this segment (0 past the tube's openings too)
-        share = _vertex_share(s_line, np.zeros(len(it), bool), np.zeros(len(it), bool))
-        c_body = X + rho[:, None] * n_out  # the body's point against the wall
-        c_wall = P + r_in[:, None] * n_out
+        if inside:
+            d = dist + rho - r_w
+            n_body = -n_out  # the bore pushes the body towards the axis
+            ends = np.zeros(len(it), bool)  # the wall ends at the openings
+            share = _vertex_share(s_line, ends, ends)
+        else:
+            d = rho + r_w - dist
+            n_body = n_out
+            share = _vertex_share(s_line, it == 0, it == m - 1)
+        c_body = X - rho[:, None] * n_body  # the body's point against the wall
+        c_wall = P + r_w[:, None] * n_out
         v_body = vb[ib] + jnp.cross(wb[ib], c_body - X)
-
         v0 = vt_[a0] + jnp.cross(wt[a0], c_wall - xt[a0])
         v1 = vt_[a1] + jnp.cross(wt[a1], c_wall - xt[a1])
         v_wall = (1 - s)[:, None] * v0 + s[:, None] * v1
-        f, fn, slip = _law_forces(law, d, -n_out, v_body - v_wall, share, friction)
+        f, fn, slip = _law_forces(law, d, n_body, v_body - v_wall, share, friction)
         W = W.at[sb.point[ib]].add(_point_wrenches(Rb[ib], pb[ib], c_body, f))
         for idx, lam in ((a0, 1 - s), (a1, s)):
             W = W.at[st.point[idx]].add(
                 _point_wrenches(Rt[idx], pt[idx], c_wall, -lam[:, None] * f)
             )
         energy = jnp.sum(share * law.potential(d))
-        # past a segment's span (share 0) the row reports the bore as its gap
-        gap = jnp.where(share > 0, d, -r_in)
-        rows.append((c_body, -n_out, gap, fn, f, slip, energy, sb.link[ib]))
+        # past a segment's span (share 0) the row reports the wall's radius as a gap
+        gap = jnp.where(share > 0, d, -r_w)
+        rows.append((c_body, n_body, gap, fn, f, slip, energy, sb.link[ib]))
     return W, rows
 
 
@@ -523,10 +550,10 @@ def smallest_radius(linkage: Linkage) -> Array:
     contact = linkage.contact
     assert contact is not None
     radii = [obstacle_samples(linkage).radius] if contact.obstacles else []
-    for link in sorted(
-        {i for p in contact.rod_pairs for i in p} | set(contact.self_contact)
-    ):
-        radii.append(rod_samples(linkage, link)[0].radius)
+    others = {i for p in contact.rod_pairs for i in p} | set(contact.self_contact)
+    others |= {body for _, body in contact.inside}
+    for link in sorted(others):
+        radii.append(link_samples(linkage, link).radius)
     radii = [r for r in radii if r.shape[0]]
     if not radii:
         return jnp.asarray(jnp.inf)
@@ -554,8 +581,8 @@ def _contact(linkage: Linkage, t, g, eta):
         for r in rp:
             rows.append(r[:7])
             labels.append((np.asarray(r[7]), np.full(len(r[7]), -1)))
-    if contact.inside:
-        Wi, ri = _inside_terms(linkage, g, eta, friction)
+    if sphere_rod_pairs(linkage):
+        Wi, ri = _sphere_rod_terms(linkage, g, eta, friction)
         W = W + Wi
         for r in ri:
             rows.append(r[:7])

@@ -518,15 +518,20 @@ class Contact(eqx.Module):
         law: the :class:`ContactLaw` (one for every contact of the scene).
         links: 1-based numbers of the links that touch the obstacles; default all
             soft links and every rigid link that has a shape.
-        shapes: ``{link: AbstractContactShape}`` for rigid links.
-        radius: ``{link: radius [m]}`` overriding a soft link's section extent.
+        shapes: the rigid links' contact shapes (given as ``{link: shape}``).
+        shape_links: their link numbers (static).
+        radius: radii [m] overriding soft links' section extents (given as
+            ``{link: radius}``).
+        radius_links: their link numbers (static).
         spacing: largest distance between a soft link's samples [m]; default the
             smallest of the link's radius and the obstacles' radii of curvature
             (so that a 1 cm rod and a 1 cm sphere cannot miss each other by more
             than 7 % of the radius), with at least 4 and at most 400 cells per
             division (a given spacing is not capped).
-        rod_pairs: pairs ``(a, b)`` of soft links checked against each other
-            (segment-segment closest points).
+        rod_pairs: pairs ``(a, b)`` checked against each other: two soft links
+            (segment-segment closest points), or a soft link and a rigid link
+            with a shape (its spheres against the rod's segments: an object in a
+            gripper's fingers).
         self_contact: soft links checked against themselves (segments further apart
             along the rod than 2.5 times the sum of their radii).
         friction_in_rod_pairs: whether rod-rod contacts carry friction (default
@@ -542,8 +547,10 @@ class Contact(eqx.Module):
     obstacles: tuple[AbstractObstacle, ...]
     law: ContactLaw
     links: tuple[int, ...] | None = eqx.field(static=True)
-    shapes: tuple[tuple[int, AbstractContactShape], ...]
-    radius: tuple[tuple[int, Float[Array, ""]], ...]
+    shapes: tuple[AbstractContactShape, ...]
+    shape_links: tuple[int, ...] = eqx.field(static=True)
+    radius: tuple[Float[Array, ""], ...]
+    radius_links: tuple[int, ...] = eqx.field(static=True)
     spacing: float | None = eqx.field(static=True)
     rod_pairs: tuple[tuple[int, int], ...] = eqx.field(static=True)
     self_contact: tuple[int, ...] = eqx.field(static=True)
@@ -600,10 +607,13 @@ class Contact(eqx.Module):
         self.obstacles = obstacles
         self.law = law
         self.links = None if links is None else tuple(int(i) for i in links)
-        self.shapes = tuple(sorted((int(k), v) for k, v in shapes.items()))
+        # link numbers static, shapes and radii model arrays
+        self.shape_links = tuple(sorted(int(k) for k in shapes))
+        self.shapes = tuple(shapes[k] for k in sorted(shapes, key=int))
+        self.radius_links = tuple(sorted(int(k) for k in radius))
         with jax.ensure_compile_time_eval():
             self.radius = tuple(
-                sorted((int(k), jnp.asarray(v, dtype=float)) for k, v in radius.items())
+                jnp.asarray(radius[k], dtype=float) for k in sorted(radius, key=int)
             )
         self.spacing = None if spacing is None else float(spacing)
         self.rod_pairs = tuple((int(a), int(b)) for a, b in rod_pairs)
@@ -615,11 +625,11 @@ class Contact(eqx.Module):
 
     def shape_of(self, link: int) -> AbstractContactShape | None:
         """The contact shape of rigid link ``link`` (None if it has none)."""
-        return dict(self.shapes).get(link)
+        return dict(zip(self.shape_links, self.shapes, strict=True)).get(link)
 
     def radius_of(self, link: int):
         """The radius override of soft link ``link`` (None: the section's)."""
-        return dict(self.radius).get(link)
+        return dict(zip(self.radius_links, self.radius, strict=True)).get(link)
 
 
 DEFAULT_TRACED_CELLS = 16  # cells per division when the lengths are traced
@@ -683,7 +693,7 @@ def resolve_contact(contact: Contact, links) -> Contact:
                 f"Contact.links includes rigid link {i}, which has no contact shape: "
                 f"give Contact(shapes={{{i}: ContactSphere(r)}}) (or a capsule or box)."
             )
-    for i, _ in contact.shapes:
+    for i in contact.shape_links:
         check_link("Contact.shapes key", i)
         if not isinstance(links[i - 1], RigidLink):
             raise ValueError(
@@ -691,11 +701,22 @@ def resolve_contact(contact: Contact, links) -> Contact:
                 "section swept along the rod (override its radius with "
                 "Contact(radius={...}))."
             )
-    for i, _ in contact.radius:
+    for i in contact.radius_links:
         check_link("Contact.radius key", i, soft_only=True)
     for a, b in contact.rod_pairs:
-        check_link("Contact.rod_pairs entry", a, soft_only=True)
-        check_link("Contact.rod_pairs entry", b, soft_only=True)
+        check_link("Contact.rod_pairs entry", a)
+        check_link("Contact.rod_pairs entry", b)
+        for i in (a, b):
+            if isinstance(links[i - 1], RigidLink) and contact.shape_of(i) is None:
+                raise ValueError(
+                    f"Contact.rod_pairs has rigid link {i}, which has no contact "
+                    f"shape: give Contact(shapes={{{i}: ContactSphere(r)}})."
+                )
+        if isinstance(links[a - 1], RigidLink) and isinstance(links[b - 1], RigidLink):
+            raise ValueError(
+                f"Contact.rod_pairs has ({a}, {b}), two rigid links: a pair needs a "
+                "soft link (rigid-rigid contact is not modelled)."
+            )
         if a == b:
             raise ValueError(
                 f"Contact.rod_pairs has ({a}, {b}): a link against itself is "
@@ -728,7 +749,12 @@ def resolve_contact(contact: Contact, links) -> Contact:
         for i in (contact_links(contact, links) if contact.obstacles else ())
         if isinstance(links[i - 1], SoftLink)
     )
-    sampled |= {i for pair in contact.rod_pairs for i in pair}
+    sampled |= {
+        i
+        for pair in contact.rod_pairs
+        for i in pair
+        if isinstance(links[i - 1], SoftLink)
+    }
     sampled |= set(contact.self_contact)
     sampled |= {t for t, _ in contact.inside}
     sampled |= {b for _, b in contact.inside if isinstance(links[b - 1], SoftLink)}
@@ -760,8 +786,8 @@ def resolve_contact(contact: Contact, links) -> Contact:
         contact.obstacles,
         contact.law,
         links=contact.links,
-        shapes=dict(contact.shapes),
-        radius=dict(contact.radius),
+        shapes=dict(zip(contact.shape_links, contact.shapes, strict=True)),
+        radius=dict(zip(contact.radius_links, contact.radius, strict=True)),
         spacing=contact.spacing,
         rod_pairs=contact.rod_pairs,
         self_contact=contact.self_contact,
