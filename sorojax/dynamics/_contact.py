@@ -467,6 +467,66 @@ def sphere_rod_pairs(linkage: Linkage) -> tuple[tuple[int, int, bool], ...]:
     return tuple(out)
 
 
+class _SphereRod(NamedTuple):
+    """Geometry of a body's spheres against a rod's segments (one row a pair)."""
+
+    st: Samples  # the rod's samples
+    sb: Samples  # the body's
+    ib: np.ndarray  # body sample of each row
+    a0: np.ndarray  # segment start (rod sample) of each row
+    a1: np.ndarray  # segment end
+    s: Array  # closest point's parameter on the segment
+    share: Array  # the segment's share of the contact
+    d: Array  # penetration
+    n_body: Array  # unit normal into the body
+    c_body: Array  # the body's point against the wall
+    c_wall: Array  # the wall's point
+    r_w: Array  # the wall's radius there
+    v_rel: Array  # body's minus wall's velocity at the contact
+
+
+def _sphere_rod(linkage: Linkage, g, eta, rod: int, body: int, inside: bool):
+    """:class:`_SphereRod` of ``body`` against ``rod`` (inside it: a tube)."""
+    st, gt = rod_samples(linkage, rod)
+    sb = link_samples(linkage, body)
+    wall = (_bore_radii(linkage, rod) if inside else st.radius).astype(g.dtype)
+    _, _, xt, wt, vt_ = _world_points(g, eta, st)
+    _, _, xb, wb, vb = _world_points(g, eta, sb)
+    m = len(gt.start)
+    ib, it = np.meshgrid(np.arange(len(sb.point)), np.arange(m), indexing="ij")
+    ib, it = ib.ravel(), it.ravel()
+    a0, a1 = gt.start[it], gt.end[it]
+    A, B, X = xt[a0], xt[a1], xb[ib]
+    AB = B - A
+    den = jnp.sum(AB * AB, axis=-1)
+    s_line = jnp.sum((X - A) * AB, axis=-1) / jnp.where(den > 0, den, 1.0)
+    s = jnp.clip(s_line, 0.0, 1.0)
+    P = A + s[:, None] * AB
+    rvec = X - P
+    dist = _safe_norm(rvec)
+    n_out = rvec / jnp.maximum(dist, 1e-12)[:, None]  # from the axis outwards
+    r_w = (1 - s) * wall[a0] + s * wall[a1]
+    rho = sb.radius[ib]
+    if inside:
+        d = dist + rho - r_w
+        n_body = -n_out  # the bore pushes the body towards the axis
+        ends = np.zeros(len(it), bool)  # the wall ends at the openings
+        share = _vertex_share(s_line, ends, ends)
+    else:
+        d = rho + r_w - dist
+        n_body = n_out
+        share = _vertex_share(s_line, it == 0, it == m - 1)
+    c_body = X - rho[:, None] * n_body
+    c_wall = P + r_w[:, None] * n_out
+    v_body = vb[ib] + jnp.cross(wb[ib], c_body - X)
+    v0 = vt_[a0] + jnp.cross(wt[a0], c_wall - xt[a0])
+    v1 = vt_[a1] + jnp.cross(wt[a1], c_wall - xt[a1])
+    v_wall = (1 - s)[:, None] * v0 + s[:, None] * v1
+    return _SphereRod(
+        st, sb, ib, a0, a1, s, share, d, n_body, c_body, c_wall, r_w, v_body - v_wall
+    )
+
+
 def _sphere_rod_terms(linkage: Linkage, g, eta, friction: bool):
     """A body's spheres against a soft rod's segments: (wrench rows, report rows).
 
@@ -476,56 +536,23 @@ def _sphere_rod_terms(linkage: Linkage, g, eta, friction: bool):
     (:func:`_vertex_share`); a tube's openings end its wall, a rod's ends are
     rounded.
     """
-    contact = linkage.contact
-    law = contact.law
+    law = linkage.contact.law
     W = jnp.zeros((g.shape[0], 6), g.dtype)
     rows = []
     for rod, body, inside in sphere_rod_pairs(linkage):
-        st, gt = rod_samples(linkage, rod)
-        sb = link_samples(linkage, body)
-        wall = (_bore_radii(linkage, rod) if inside else st.radius).astype(g.dtype)
-        Rt, pt, xt, wt, vt_ = _world_points(g, eta, st)
-        Rb, pb, xb, wb, vb = _world_points(g, eta, sb)
-        m = len(gt.start)
-        ib, it = np.meshgrid(np.arange(len(sb.point)), np.arange(m), indexing="ij")
-        ib, it = ib.ravel(), it.ravel()
-        a0, a1 = gt.start[it], gt.end[it]
-        A, B, X = xt[a0], xt[a1], xb[ib]
-        AB = B - A
-        den = jnp.sum(AB * AB, axis=-1)
-        s_line = jnp.sum((X - A) * AB, axis=-1) / jnp.where(den > 0, den, 1.0)
-        s = jnp.clip(s_line, 0.0, 1.0)
-        P = A + s[:, None] * AB
-        rvec = X - P
-        dist = _safe_norm(rvec)
-        n_out = rvec / jnp.maximum(dist, 1e-12)[:, None]  # from the axis outwards
-        r_w = (1 - s) * wall[a0] + s * wall[a1]
-        rho = sb.radius[ib]
-        if inside:
-            d = dist + rho - r_w
-            n_body = -n_out  # the bore pushes the body towards the axis
-            ends = np.zeros(len(it), bool)  # the wall ends at the openings
-            share = _vertex_share(s_line, ends, ends)
-        else:
-            d = rho + r_w - dist
-            n_body = n_out
-            share = _vertex_share(s_line, it == 0, it == m - 1)
-        c_body = X - rho[:, None] * n_body  # the body's point against the wall
-        c_wall = P + r_w[:, None] * n_out
-        v_body = vb[ib] + jnp.cross(wb[ib], c_body - X)
-        v0 = vt_[a0] + jnp.cross(wt[a0], c_wall - xt[a0])
-        v1 = vt_[a1] + jnp.cross(wt[a1], c_wall - xt[a1])
-        v_wall = (1 - s)[:, None] * v0 + s[:, None] * v1
-        f, fn, slip = _law_forces(law, d, n_body, v_body - v_wall, share, friction)
-        W = W.at[sb.point[ib]].add(_point_wrenches(Rb[ib], pb[ib], c_body, f))
-        for idx, lam in ((a0, 1 - s), (a1, s)):
-            W = W.at[st.point[idx]].add(
-                _point_wrenches(Rt[idx], pt[idx], c_wall, -lam[:, None] * f)
+        k = _sphere_rod(linkage, g, eta, rod, body, inside)
+        f, fn, slip = _law_forces(law, k.d, k.n_body, k.v_rel, k.share, friction)
+        Rb, pb = g[k.sb.point, :3, :3], g[k.sb.point, :3, 3]
+        Rt, pt = g[k.st.point, :3, :3], g[k.st.point, :3, 3]
+        W = W.at[k.sb.point[k.ib]].add(_point_wrenches(Rb[k.ib], pb[k.ib], k.c_body, f))
+        for idx, lam in ((k.a0, 1 - k.s), (k.a1, k.s)):
+            W = W.at[k.st.point[idx]].add(
+                _point_wrenches(Rt[idx], pt[idx], k.c_wall, -lam[:, None] * f)
             )
-        energy = jnp.sum(share * law.potential(d))
+        energy = jnp.sum(k.share * law.potential(k.d))
         # past a segment's span (share 0) the row reports the wall's radius as a gap
-        gap = jnp.where(share > 0, d, -r_w)
-        rows.append((c_body, n_body, gap, fn, f, slip, energy, sb.link[ib]))
+        gap = jnp.where(k.share > 0, k.d, -k.r_w)
+        rows.append((k.c_body, k.n_body, gap, fn, f, slip, energy, k.sb.link[k.ib]))
     return W, rows
 
 
@@ -679,51 +706,72 @@ def contact_energy(linkage: Linkage, q: ArrayLike) -> Float[Array, ""]:
     return contact_energy_from_poses(linkage, poses(precompute(linkage), q))
 
 
+def _point_jacobian(g, J, point, x_c):
+    """World linear-velocity Jacobians ``(n, 3, n_dof)`` of points ``x_c``.
+
+    The points move with significant points ``point``: ``R (J_v - [a_b]x J_w)``.
+    """
+    R, p = g[point, :3, :3], g[point, :3, 3]
+    Jp = J[point]
+    a_b = jnp.einsum("nji,nj->ni", R, x_c - p)
+    return jnp.einsum(
+        "nij,njk->nik", R, Jp[:, 3:] - jnp.cross(a_b[:, :, None], Jp[:, :3], axis=1)
+    )
+
+
+def _tangent_terms(law, weight, d, n, v_rel, Jc):
+    """``(K, D)`` contributions of contacts with relative-velocity Jacobians ``Jc``."""
+    kn = weight * jax.vmap(jax.grad(law.normal_force))(d)
+    cn = weight * law.damping * law.ramp(d)
+    vn = jnp.sum(v_rel * n, axis=-1)
+    vt = v_rel - vn[:, None] * n
+    ct = (
+        weight
+        * law.friction_coefficient(_safe_norm(vt))
+        * law.normal_force(d)
+        / jnp.sqrt(jnp.sum(vt * vt, axis=-1) + law.stick_velocity**2)
+    )
+    Jn = jnp.einsum("ni,nik->nk", n, Jc)  # normal rows
+    K = jnp.einsum("n,ni,nj->ij", kn, Jn, Jn)
+    D = jnp.einsum("n,ni,nj->ij", cn - ct, Jn, Jn) + jnp.einsum(
+        "n,nik,nil->kl", ct, Jc, Jc
+    )
+    return K, D
+
+
 def contact_tangent(linkage: Linkage, t, g, J, eta) -> tuple[Array, Array]:
-    """``(K_c, D_c)``: the obstacle contacts' stiffness and damping in coordinates.
+    """``(K_c, D_c)``: the contacts' stiffness and damping in coordinates.
 
     Gauss-Newton forms (symmetric positive semi-definite, so that ROS34PW2's
     ``M + c D + c^2 K`` stays positive definite): ``K_c = sum J_c^T (w f_n'(d)
     n n^T) J_c`` and ``D_c = sum J_c^T (w c s(d) n n^T + w c_t (I - n n^T)) J_c``
-    with ``J_c`` the world linear-velocity Jacobian of each contact point and
-    ``c_t = mu f_n / sqrt(|v_t|^2 + v_s^2)`` the friction's viscous slope. The
-    geometric (curvature) terms and rod-rod pairs are left out: W only needs the
-    contacts' fast scales, its order conditions hold for any W.
+    with ``J_c`` the Jacobian of each contact's relative velocity (world) and
+    ``c_t = mu f_n / sqrt(|v_t|^2 + v_s^2)`` the friction's viscous slope: obstacle
+    contacts, and bodies against rods (tubes, a rigid shape in ``rod_pairs``).
+    The geometric (curvature) terms and rod-rod pairs are left out: W only needs
+    the contacts' fast scales, its order conditions hold for any W.
     """
     contact = linkage.contact
     assert contact is not None
     n_dof = J.shape[-1]
     Kc = jnp.zeros((n_dof, n_dof), J.dtype)
     Dc = jnp.zeros((n_dof, n_dof), J.dtype)
-    if not contact.obstacles:
-        return Kc, Dc
     law = contact.law
-    samples = obstacle_samples(linkage)
-    R, p, x, w, v = _world_points(g, eta, samples)
-    Jp = J[samples.point]  # (n, 6, n_dof) body Jacobians
-    for ob in contact.obstacles:
-        n, d, x_c, v_rel = _against_obstacle(ob, t, x, w, v, samples.radius)
-        a_b = jnp.einsum("nji,nj->ni", R, x_c - p)
-        # v_c = R (v_b + w_b x a_b) = R (J_v - [a_b]x J_w) qd
-        Jc = jnp.einsum(
-            "nij,njk->nik", R, Jp[:, 3:] - jnp.cross(a_b[:, :, None], Jp[:, :3], axis=1)
-        )
-        kn = samples.weight * jax.vmap(jax.grad(law.normal_force))(d)
-        cn = samples.weight * law.damping * law.ramp(d)
-        vn = jnp.sum(v_rel * n, axis=-1)
-        vt = v_rel - vn[:, None] * n
-        ct = (
-            samples.weight
-            * law.friction_coefficient(_safe_norm(vt))
-            * law.normal_force(d)
-            / jnp.sqrt(jnp.sum(vt * vt, axis=-1) + law.stick_velocity**2)
-        )
-        Jn = jnp.einsum("ni,nik->nk", n, Jc)  # normal rows
-        Kc = Kc + jnp.einsum("n,ni,nj->ij", kn, Jn, Jn)
-        JtJ = jnp.einsum("nik,nil->nkl", Jc, Jc)
-        Dc = (
-            Dc
-            + jnp.einsum("n,ni,nj->ij", cn - ct, Jn, Jn)
-            + jnp.einsum("n,nkl->kl", ct, JtJ)
-        )
+    if contact.obstacles:
+        samples = obstacle_samples(linkage)
+        _, _, x, w, v = _world_points(g, eta, samples)
+        for ob in contact.obstacles:
+            n, d, x_c, v_rel = _against_obstacle(ob, t, x, w, v, samples.radius)
+            Jc = _point_jacobian(g, J, samples.point, x_c)
+            K, D = _tangent_terms(law, samples.weight, d, n, v_rel, Jc)
+            Kc, Dc = Kc + K, Dc + D
+    for rod, body, inside in sphere_rod_pairs(linkage):
+        k = _sphere_rod(linkage, g, eta, rod, body, inside)
+        Jc = _point_jacobian(g, J, k.sb.point[k.ib], k.c_body)
+        for idx, lam in ((k.a0, 1 - k.s), (k.a1, k.s)):
+            Jc = Jc - lam[:, None, None] * _point_jacobian(
+                g, J, k.st.point[idx], k.c_wall
+            )
+        K, D = _tangent_terms(law, k.share, k.d, k.n_body, k.v_rel, Jc)
+        Kc, Dc = Kc + K, Dc + D
     return Kc, Dc
