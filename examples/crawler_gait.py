@@ -53,7 +53,7 @@ def bending(t, q, qd, kin, u, amplitude, phase, front):
     """Internal bending moment per length about the body y axis at every point."""
     w = 2 * jnp.pi * FREQ
     m = amplitude * jnp.where(front > 0.5, jnp.sin(w * t - phase), jnp.sin(w * t))
-    m = m * (front >= 0)  # only rod points (front: -1 elsewhere)
+    m = jnp.where(front >= 0, m, 0.0)  # only rod points (front: -1 elsewhere)
     zeros = jnp.zeros_like(m)
     return jnp.stack([zeros, m, zeros, zeros, zeros, zeros], axis=1)
 

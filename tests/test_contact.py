@@ -463,3 +463,24 @@ def test_ball_resting_on_a_cantilever_carries_its_weight():
     np.testing.assert_allclose(float(jnp.max(cs.penetration)), m * G / 1e4, rtol=0.1)
     # the rod bends down under it
     assert float(sj.tip_pose(lk, sol.q, 1)[2, 3]) < -1e-2
+
+
+def test_an_obstacle_with_its_own_law_sets_the_friction():
+    """A rod sliding at 1 m/s on a floor whose own law has mu = 0.2 (the contact's
+    default 0.5): every sample's friction is -0.2 f_n along the slip."""
+    rod = floor_rod().links[0]
+    rod = sj.SoftLink(rod.divisions, rod.material, joint=sj.Joint("P", axis=(1, 0, 0)))
+    rough = sj.ContactLaw(stiffness=1e5, smoothing=1e-6, static_friction=0.5)
+    slippery = sj.ContactLaw(stiffness=1e5, smoothing=1e-6, static_friction=0.2)
+    lk = sj.Linkage(
+        [rod], placements=_pose(R_ROD - 1e-4)[None], gravity=(0, 0, -G),
+        contact=sj.Contact(sj.Plane(), rough, spacing=0.03, obstacle_laws={0: slippery}),
+    )  # fmt: skip
+    qd = jnp.zeros(lk.n_dof).at[0].set(1.0)
+    cs = sj.contact_state(lk, jnp.zeros(lk.n_dof), qd)
+    f = np.asarray(cs.force)
+    # mu(1 m/s) = mu_k to 1e-4 (Stribeck 1 cm/s), regularisation (1 mm/s) 5e-7
+    np.testing.assert_allclose(f[:, 0], -0.2 * f[:, 2], rtol=1e-3)
+    assert np.all(f[:, 2] > 0)
+    with pytest.raises(ValueError, match="Contact.obstacle_laws"):
+        sj.Contact(sj.Plane(), rough, obstacle_laws={1: slippery})

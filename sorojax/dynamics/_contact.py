@@ -259,11 +259,11 @@ def _against_obstacle(ob, t, x, w, v, radius):
 
 def _obstacle_terms(contact: Contact, samples: Samples, g, eta, t, friction: bool):
     """Per obstacle: (wrench rows, report rows) of every sample."""
-    law = contact.law
     R, p, x, w, v = _world_points(g, eta, samples)
     W = jnp.zeros((g.shape[0], 6), g.dtype)
     rows = []
-    for ob in contact.obstacles:
+    for k, ob in enumerate(contact.obstacles):
+        law = contact.obstacle_law(k)
         n, d, x_c, v_rel = _against_obstacle(ob, t, x, w, v, samples.radius)
         f, fn, vt = _law_forces(
             law, d, n, v_rel, samples.weight, friction, axis=R[:, :, 0]
@@ -760,10 +760,12 @@ def contact_tangent(linkage: Linkage, t, g, J, eta) -> tuple[Array, Array]:
     if contact.obstacles:
         samples = obstacle_samples(linkage)
         _, _, x, w, v = _world_points(g, eta, samples)
-        for ob in contact.obstacles:
+        for k, ob in enumerate(contact.obstacles):
             n, d, x_c, v_rel = _against_obstacle(ob, t, x, w, v, samples.radius)
             Jc = _point_jacobian(g, J, samples.point, x_c)
-            K, D = _tangent_terms(law, samples.weight, d, n, v_rel, Jc)
+            K, D = _tangent_terms(
+                contact.obstacle_law(k), samples.weight, d, n, v_rel, Jc
+            )
             Kc, Dc = Kc + K, Dc + D
     for rod, body, inside in sphere_rod_pairs(linkage):
         k = _sphere_rod(linkage, g, eta, rod, body, inside)

@@ -539,6 +539,10 @@ class Contact(eqx.Module):
         inside: pairs ``(tube, body)``: ``body`` (a soft link, or a rigid link
             with a shape) moves inside soft link ``tube``, whose divisions have an
             :class:`~sorojax.AnnularSection`, and touches its inner surface.
+        obstacle_laws: laws of particular obstacles (given as ``{index: law}``,
+            0-based into ``obstacles``: a slippery peg beside a rough floor); the
+            others, the rod pairs and the tubes use ``law``.
+        obstacle_law_index: their obstacle indices (static).
         tangent_in_w: whether ROS34PW2's W carries the obstacle contacts' stiffness
             and damping (default True: stiff contact and sticking friction then
             do not bound its step; ``benchmarks/contact.py`` measures both).
@@ -556,6 +560,8 @@ class Contact(eqx.Module):
     self_contact: tuple[int, ...] = eqx.field(static=True)
     friction_in_rod_pairs: bool = eqx.field(static=True)
     inside: tuple[tuple[int, int], ...] = eqx.field(static=True)
+    obstacle_laws: tuple[ContactLaw, ...]
+    obstacle_law_index: tuple[int, ...] = eqx.field(static=True)
     tangent_in_w: bool = eqx.field(static=True)
     cells: tuple | None = eqx.field(static=True)  # resolved by the Linkage
 
@@ -571,6 +577,7 @@ class Contact(eqx.Module):
         self_contact=(),
         friction_in_rod_pairs: bool = True,
         inside=(),
+        obstacle_laws=None,
         tangent_in_w: bool = True,
         cells: tuple | None = None,
     ):
@@ -620,12 +627,30 @@ class Contact(eqx.Module):
         self.self_contact = tuple(int(i) for i in self_contact)
         self.friction_in_rod_pairs = bool(friction_in_rod_pairs)
         self.inside = tuple((int(a), int(b)) for a, b in inside)
+        obstacle_laws = dict(obstacle_laws or {})
+        for k, lw in obstacle_laws.items():
+            if not 0 <= int(k) < len(obstacles):
+                raise ValueError(
+                    f"Contact.obstacle_laws has index {k!r}: give 0-based indices "
+                    f"of obstacles (0..{len(obstacles) - 1})."
+                )
+            if not isinstance(lw, ContactLaw):
+                raise ValueError(
+                    f"Contact.obstacle_laws[{k}] = {lw!r}: give a ContactLaw."
+                )
+        self.obstacle_law_index = tuple(sorted(int(k) for k in obstacle_laws))
+        self.obstacle_laws = tuple(obstacle_laws[k] for k in sorted(obstacle_laws))
         self.tangent_in_w = bool(tangent_in_w)
         self.cells = cells
 
     def shape_of(self, link: int) -> AbstractContactShape | None:
         """The contact shape of rigid link ``link`` (None if it has none)."""
         return dict(zip(self.shape_links, self.shapes, strict=True)).get(link)
+
+    def obstacle_law(self, k: int) -> ContactLaw:
+        """The law of obstacle ``k`` (0-based): its own, or the contact's."""
+        laws = dict(zip(self.obstacle_law_index, self.obstacle_laws, strict=True))
+        return laws.get(k, self.law)
 
     def radius_of(self, link: int):
         """The radius override of soft link ``link`` (None: the section's)."""
@@ -793,6 +818,9 @@ def resolve_contact(contact: Contact, links) -> Contact:
         self_contact=contact.self_contact,
         friction_in_rod_pairs=contact.friction_in_rod_pairs,
         inside=contact.inside,
+        obstacle_laws=dict(
+            zip(contact.obstacle_law_index, contact.obstacle_laws, strict=True)
+        ),
         tangent_in_w=contact.tangent_in_w,
         cells=tuple(cells),
     )
