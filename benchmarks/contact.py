@@ -14,7 +14,11 @@ Five measurements, all in this process (persistent compilation cache off):
 4. ``stiffness``: the block on the plane at contact stiffnesses 1e3 .. 1e7 N/m:
    steps of Tsit5 (explicit: bounded by the contact's frequency) and of ROS34PW2
    with the contact tangent in W.
-5. ``touchdown``: the heavy cantilever resting on a frictionless floor against the
+5. ``fixed_steps``: where methods fail: the block on the plane at constant steps
+   (0.1 to 10 ms) for contact stiffnesses 1e3 .. 1e7 N/m, Tsit5 against ROS34PW2
+   with the contact tangent in W: the largest step at which the block stays on
+   the plane (finite, no penetration deeper than 1 mm) for 0.5 s.
+6. ``touchdown``: the heavy cantilever resting on a frictionless floor against the
    elastica reference (tests/contact_reference.py) as the contact stiffness rises:
    centre-line error, clamp force error, where the contact zone starts.
 
@@ -176,6 +180,33 @@ def stiffness(repeats):
     return out
 
 
+def fixed_steps():
+    out = []
+    steps = (1e-4, 3e-4, 1e-3, 3e-3, 1e-2)
+    for k in (1e3, 1e4, 1e5, 1e6, 1e7):
+        for solver in ("tsit5", "ros34pw2"):
+            lk = block(15.0, stiffness=k)
+            stable = []
+            for dt in steps:
+                tr = sj.simulate(lk, 0.5, jnp.zeros(lk.n_dof), solver=solver,
+                                 dt0=dt, adaptive=False, n_save=11, throw=False,
+                                 max_steps=10_000)  # fmt: skip
+                cs = tr.contact
+                ok = (
+                    int(tr.result._value) == 0
+                    and bool(jnp.all(jnp.isfinite(tr.q)))
+                    and float(jnp.max(cs.penetration)) < 1e-3
+                )
+                stable.append(ok)
+            largest = max([dt for dt, ok in zip(steps, stable, strict=True) if ok],
+                          default=0.0)  # fmt: skip
+            out.append(dict(stiffness=k, solver=solver, steps=list(steps),
+                            stable=stable, largest_stable_step=largest))  # fmt: skip
+            print(f"fixed steps k={k:8.0e} {solver:9s}: stable at "
+                  f"{[dt for dt, ok in zip(steps, stable, strict=True) if ok]}")  # fmt: skip
+    return out
+
+
 def touchdown():
     L, EI, w, d, r = 1.0, 0.05, 1.0, 0.05, 0.01
     ref = heavy_cantilever_on_floor(L, EI, w, d)
@@ -219,7 +250,7 @@ def chart(res, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(1, 3, figsize=(13, 3.8))
+    fig, ax = plt.subplots(1, 4, figsize=(17, 3.8))
     c = res["cost"]
     ax[0].plot([r["samples"] for r in c[1:]], [r["warm_median_s"] * 1e6 for r in c[1:]],
                "o-", label="with contact")  # fmt: skip
@@ -235,6 +266,16 @@ def chart(res, path):
     ax[1].set(xscale="log", yscale="log", xlabel="contact stiffness [N/m]",
               ylabel="steps for 0.5 s", title="block held on a 15 deg plane")  # fmt: skip
     ax[1].legend()
+    fs = res["fixed_steps"]
+    for solver in ("tsit5", "ros34pw2"):
+        rows = [r for r in fs if r["solver"] == solver]
+        ax[3].plot([r["stiffness"] for r in rows],
+                   [max(r["largest_stable_step"], 1e-5) for r in rows], "o-",
+                   label=solver + (" (contact in W)" if solver == "ros34pw2" else ""))  # fmt: skip
+    ax[3].set(xscale="log", yscale="log", xlabel="contact stiffness [N/m]",
+              ylabel="largest stable constant step [s]",
+              title="where methods fail (block, 0.5 s)")  # fmt: skip
+    ax[3].legend()
     td = res["touchdown"]
     ax[2].plot([r["stiffness"] for r in td], [r["shape_error_L"] for r in td], "o-",
                label="centre line (max) / L")  # fmt: skip
@@ -256,6 +297,7 @@ def main():
     res["compile"] = compile_share()
     res["w_tangent"] = w_tangent(a.repeats)
     res["stiffness"] = stiffness(a.repeats)
+    res["fixed_steps"] = fixed_steps()
     res["touchdown"] = touchdown()
     out = ROOT / "benchmarks" / "results" / "contact.json"
     out.write_text(json.dumps(res, indent=1))
