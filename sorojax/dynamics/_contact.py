@@ -72,37 +72,32 @@ def _division_samples(linkage: Linkage, contact: Contact, link_number: int):
     return out
 
 
+def link_samples(linkage: Linkage, link_number: int) -> Samples:
+    """A link's contact samples: a soft link's centre-line samples, a rigid shape's."""
+    lay = linkage.layout.links[link_number - 1]
+    if lay.soft:
+        return rod_samples(linkage, link_number)[0]
+    o, r = linkage.contact.shape_of(link_number).points()
+    n = o.shape[0]
+    return Samples(
+        np.full(n, lay.cm_point), np.full(n, link_number), jnp.ones(n, o.dtype), r, o
+    )
+
+
 def obstacle_samples(linkage: Linkage) -> Samples:
     """The samples checked against the obstacles, link by link."""
     contact = linkage.contact
     assert contact is not None
-    pts, links, ws, rs, offs = [], [], [], [], []
-    for i in contact_links(contact, linkage.links):
-        lay = linkage.layout.links[i - 1]
-        shape = contact.shape_of(i)
-        if lay.soft:
-            for idx, w, r, _ in _division_samples(linkage, contact, i):
-                pts.append(idx)
-                ws.append(w)
-                rs.append(r)
-                offs.append(jnp.zeros((len(idx), 3), w.dtype))
-                links.append(np.full(len(idx), i))
-        elif shape is not None:
-            o, r = shape.points()
-            pts.append(np.full(o.shape[0], lay.cm_point))
-            ws.append(jnp.ones(o.shape[0], o.dtype))
-            rs.append(r)
-            offs.append(o)
-            links.append(np.full(o.shape[0], i))
-    if not pts:
+    parts = [link_samples(linkage, i) for i in contact_links(contact, linkage.links)]
+    if not parts:
         z = jnp.zeros((0,))
         return Samples(np.zeros(0, int), np.zeros(0, int), z, z, jnp.zeros((0, 3)))
     return Samples(
-        np.concatenate(pts),
-        np.concatenate(links),
-        jnp.concatenate(ws),
-        jnp.concatenate(rs),
-        jnp.concatenate(offs),
+        np.concatenate([p.point for p in parts]),
+        np.concatenate([p.link for p in parts]),
+        jnp.concatenate([p.weight for p in parts]),
+        jnp.concatenate([p.radius for p in parts]),
+        jnp.concatenate([p.offset for p in parts]),
     )
 
 
@@ -373,6 +368,17 @@ def pair_link_b(linkage: Linkage) -> np.ndarray:
     return np.concatenate(out) if out else np.zeros(0, int)
 
 
+def _segment_velocity(x, w, v, i0, i1, c, lam):
+    """Velocity of points ``c`` carried by segments ``i0 -> i1``.
+
+    Weighted ``1 - lam`` and ``lam`` (as their forces are split), from the samples'
+    positions ``x``, spins ``w`` and velocities ``v``.
+    """
+    v0 = v[i0] + jnp.cross(w[i0], c - x[i0])
+    v1 = v[i1] + jnp.cross(w[i1], c - x[i1])
+    return (1 - lam)[:, None] * v0 + lam[:, None] * v1
+
+
 def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
     """Rod-rod contacts: (wrench rows, report rows)."""
     law = contact.law
@@ -404,12 +410,9 @@ def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
         cA = PA - rA[:, None] * n
         cB = PB + rB[:, None] * n
 
-        def vel(x, w, v, i0, i1, c, lam):
-            v0 = v[i0] + jnp.cross(w[i0], c - x[i0])
-            v1 = v[i1] + jnp.cross(w[i1], c - x[i1])
-            return (1 - lam)[:, None] * v0 + lam[:, None] * v1
-
-        v_rel = vel(xa, wa, va, a0, a1, cA, s) - vel(xb, wb, vb, b0, b1, cB, u)
+        v_rel = _segment_velocity(xa, wa, va, a0, a1, cA, s) - _segment_velocity(
+            xb, wb, vb, b0, b1, cB, u
+        )
         f, fn, vt = _law_forces(
             law,
             d,
@@ -429,18 +432,6 @@ def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
         energy = jnp.sum(share * law.potential(d))
         rows.append((cA, n, d, fn, f, vt, energy, sa.link[a0]))
     return W, rows
-
-
-def link_samples(linkage: Linkage, link_number: int) -> Samples:
-    """A link's contact samples: a soft link's centre-line samples, a rigid shape's."""
-    lay = linkage.layout.links[link_number - 1]
-    if lay.soft:
-        return rod_samples(linkage, link_number)[0]
-    o, r = linkage.contact.shape_of(link_number).points()
-    n = o.shape[0]
-    return Samples(
-        np.full(n, lay.cm_point), np.full(n, link_number), jnp.ones(n, o.dtype), r, o
-    )
 
 
 def _bore_radii(linkage: Linkage, tube: int) -> Array:
@@ -519,9 +510,7 @@ def _sphere_rod(linkage: Linkage, g, eta, rod: int, body: int, inside: bool):
     c_body = X - rho[:, None] * n_body
     c_wall = P + r_w[:, None] * n_out
     v_body = vb[ib] + jnp.cross(wb[ib], c_body - X)
-    v0 = vt_[a0] + jnp.cross(wt[a0], c_wall - xt[a0])
-    v1 = vt_[a1] + jnp.cross(wt[a1], c_wall - xt[a1])
-    v_wall = (1 - s)[:, None] * v0 + s[:, None] * v1
+    v_wall = _segment_velocity(xt, wt, vt_, a0, a1, c_wall, s)
     return _SphereRod(
         st, sb, ib, a0, a1, s, share, d, n_body, c_body, c_wall, r_w, v_body - v_wall
     )

@@ -196,8 +196,13 @@ def constrained_dynamics(
     qd,
     u_fn: InputFunction,
     generalized_force: GeneralizedForce | None = None,
-) -> ConstrainedState:
+    return_rates: bool = False,
+):
     """The saddle-point solve with prescribed coordinates and closed loops.
+
+    Returns the :class:`ConstrainedState`, and with ``return_rates`` also the
+    ``kinematics_and_rates`` it used (at the prescribed values), for a caller that
+    needs the Jacobians too.
 
     ``M qdd = f + G^T mu`` with constraint rows ``G qdd = b``: one-hot rows
     ``qdd_p = u''(t)`` for prescribed coordinates (their values and velocities are
@@ -238,9 +243,10 @@ def constrained_dynamics(
         mu = jnp.zeros((0,), q.dtype)
         qdd = spd_solve(M, f)
     u_eff = effective_inputs(linkage, t, q, qd, kin_fn, u)
-    return ConstrainedState(
+    st = ConstrainedState(
         qd=qd, qdd=qdd, u=u_eff, efforts=mu[: len(qi)], lam=mu[len(qi) :], M=M
     )
+    return (st, rates) if return_rates else st
 
 
 def consistent_velocities(

@@ -280,13 +280,12 @@ def _rates(linkage: Linkage, data, t, y, u_fn, u_const, generalized_force):
         M, f = mass_and_force(linkage, data, t, q, qd, generalized_force, rates=rates)
         ydot, st = jnp.concatenate([qd, spd_solve(M, f)]), None
     else:
-        st = constrained_dynamics(
-            linkage, data, t, q, qd, _input_function(u_fn, u_const), generalized_force
-        )
-        ydot, M, rates = jnp.concatenate([st.qd, st.qdd]), st.M, None
+        st, rates = constrained_dynamics(
+            linkage, data, t, q, qd, _input_function(u_fn, u_const), generalized_force,
+            return_rates=True,
+        )  # fmt: skip
+        ydot, M = jnp.concatenate([st.qd, st.qdd]), st.M
     if tangent:  # the contacts' stiffness and damping join W (ROS34PW2)
-        if rates is None:
-            rates = kinematics_and_rates(data, q, st.qd)
         g, J, eta, _ = rates
         Kc, Dc = contact_tangent(linkage, t, g, J, eta)
         return ydot, (M, data.K + Kc, data.D + Dc), st
