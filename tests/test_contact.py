@@ -83,6 +83,50 @@ def test_floor_penetration_follows_the_law(floor_solution):
     np.testing.assert_allclose(float(sol.q[0]), -d[0], rtol=1e-9)
 
 
+def test_barrier_law_is_the_derivative_of_its_potential_and_inverts():
+    """The barrier's force, potential and inverse law agree with one another."""
+    law = sj.ContactLaw(stiffness=1e4, smoothing=1e-3, kind="barrier")
+    d = jnp.linspace(-1.2e-3, 2e-4, 4001)  # beyond its reach, the log, the floor
+    f = law.normal_force(d)
+    # U' = f by autodiff of the closed-form potential (rounding: 1e-12 of max f)
+    dU = jax.vmap(jax.grad(law.potential))(d)
+    np.testing.assert_allclose(dU, f, rtol=0, atol=1e-12 * float(jnp.max(f)))
+    # zero beyond the reach, positive and strictly rising as the gap closes
+    assert np.all(np.asarray(f)[np.asarray(d) <= -1e-3] == 0.0)
+    inside = np.asarray(d) > -1e-3
+    assert np.all(np.diff(np.asarray(f)[inside]) > 0)
+    # the gradient is finite everywhere (the log's argument is clipped)
+    assert np.all(np.isfinite(np.asarray(jax.vmap(jax.grad(law.normal_force))(d))))
+    # inverse: 60 bisections, the force at the returned depth to 1e-9 relative;
+    # loads up to k g_hat = 10 N/m leave a gap, a far larger one presses through
+    for load in (1e-3, 1.0, 10.0, 100.0):
+        dd = law.penetration(jnp.asarray(load))
+        np.testing.assert_allclose(float(law.normal_force(dd)), load, rtol=1e-9)
+        assert float(dd) < 0.0
+    # far from the surface (x -> 0): f ~ k g_hat / x, the gap about k g_hat^2 / f
+    dd = float(law.penetration(jnp.asarray(1e3)))
+    np.testing.assert_allclose(-dd, 1e4 * 1e-6 / 1e3, rtol=0.3)
+
+
+def test_barrier_floor_carries_the_weight_across_a_gap():
+    """A rod on a barrier floor: the reaction is its weight, the rod never touches."""
+    law = sj.ContactLaw(stiffness=2e3, smoothing=1e-4, kind="barrier")
+    lk = floor_rod()
+    lk = sj.Linkage(lk.links, placements=_pose(R_ROD + 5e-5)[None],
+                    gravity=(0, 0, -G), contact=sj.Contact(sj.Plane(), law,
+                                                           spacing=0.03))  # fmt: skip
+    sol = sj.solve_statics(lk)
+    cs = sol.contact
+    # statics: the balance holds to the solver's tolerance (1e-10)
+    np.testing.assert_allclose(float(cs.total_force()[2]), W_LINE * L_ROD, rtol=1e-6)
+    d = np.asarray(cs.penetration)
+    assert np.all(d < 0), "the barrier let the rod touch the floor"
+    # every sample carries about w per length at the law's gap (1 % spread from the
+    # sampled support, as for the penalty above)
+    np.testing.assert_allclose(d, float(law.penetration(jnp.asarray(W_LINE))), rtol=0.02)
+    assert bool(np.all(np.asarray(cs.active)))
+
+
 def test_rod_started_deep_in_the_floor_is_reported():
     """A rod whose centre line starts 3 radii below the floor: a result code."""
     lk = floor_rod()
@@ -309,6 +353,7 @@ def test_segment_closest_points_match_brute_force():
             lambda: sj.ContactLaw(stiffness=1.0, stick_velocity=0.0),
             "ContactLaw.stick_velocity",
         ),
+        (lambda: sj.ContactLaw(stiffness=1.0, kind="ipc"), "ContactLaw.kind"),
         (lambda: sj.Sphere(0.0), "Sphere.radius"),
         (lambda: sj.Capsule(-0.1), "Capsule.radius"),
         (lambda: sj.Box((0.1, 0.0, 0.1)), "Box.half_extents"),

@@ -178,8 +178,8 @@ class ContactState(eqx.Module):
 
     @property
     def active(self) -> Array:
-        """(n,) True where the surfaces overlap."""
-        return self.penetration > 0
+        """(n,) True where the law acts: overlap, or a barrier's force across a gap."""
+        return (self.penetration > 0) | (self.normal_force != 0)
 
     def total_force(self) -> Array:
         """(3,) resultant contact force on the robot [N, world] (pairs cancel)."""

@@ -71,21 +71,68 @@ def _scalar(field: str, value, strict: bool) -> Array:
 
 
 # ---------------------------------------------------------------------------- law
+BARRIER_FLOOR = 1e-2
+"""Fraction of the barrier's reach below which its force continues linearly."""
+
+
+def _barrier(law, d: Array) -> tuple[Array, Array]:
+    """``(f, U)`` of the barrier law at penetration ``d`` (gap ``g = -d``)."""
+    k, gh = law.stiffness, law.smoothing
+    d = jnp.asarray(d, dtype=k.dtype)
+    xm = BARRIER_FLOOR
+    # the log's argument kept in (xm, 1], so that no branch makes a NaN gradient
+    x = jnp.clip(-d / gh, xm, 1.0)
+    lx = jnp.log(x)
+    f = k * gh * (2.0 * (x - 1.0) * lx + (x - 1.0) ** 2 / x)
+    u = -k * gh * gh * (x - 1.0) ** 2 * jnp.log(x)
+    # linear continuation below x_m: slope df/dg there (negative), in the gap g
+    lm = jnp.log(xm)
+    fm = k * gh * (2.0 * (xm - 1.0) * lm + (xm - 1.0) ** 2 / xm)
+    um = -k * gh * gh * (xm - 1.0) ** 2 * lm
+    sm = k * (2.0 * lm + 4.0 * (xm - 1.0) / xm - (xm - 1.0) ** 2 / xm**2)
+    e = -d - xm * gh  # g - g_m (negative below the floor)
+    deep = e < 0.0
+    f = jnp.where(deep, fm + sm * e, f)
+    u = jnp.where(deep, um - fm * e - 0.5 * sm * e * e, u)
+    return f, u
+
+
 class ContactLaw(eqx.Module):
-    """Smoothed penalty with damping and regularised Coulomb friction.
+    """Normal force (smoothed penalty or barrier), damping and regularised friction.
+
+    Two normal laws (``kind``), both continuously differentiable with a potential:
+
+    - ``"penalty"`` (default): no force until the surfaces overlap, then a force
+      that ramps quadratically over ``smoothing`` and rises with slope ``stiffness``
+      beyond. The surfaces overlap by about ``f / k + smoothing / 2`` under a load f.
+    - ``"barrier"``: a logarithmic barrier that acts across a gap, from ``smoothing``
+      (its reach, g_hat) down: ``f(g) = k g_hat (2 (x - 1) ln x + (x - 1)^2 / x)``,
+      ``x = g / g_hat``, potential ``-k g_hat^2 (x - 1)^2 ln x``. The force grows
+      without bound as the gap closes (about ``k g_hat / x`` for small x), so under
+      any load the surfaces stay apart: the equilibrium gap is about
+      ``k g_hat^2 / f`` once ``f >> k g_hat``. Below ``x = 1e-2`` of the reach the
+      force continues linearly with its slope there (a step of an integrator that
+      overshoots meets a very stiff penalty instead of a logarithm of a negative
+      number). The body appears larger by up to ``g_hat``: choose ``g_hat`` small
+      against the radii and k so that ``k g_hat`` is below the loads per length.
+
+    ``benchmarks/contact.py`` (``laws``) measures the two against each other on the
+    heavy cantilever resting on a floor (statics) and on a rod dropped onto it
+    (dynamics).
 
     Attributes:
-        stiffness: k, the slope of the normal force per penetration once deeper
-            than ``smoothing``: per unit length on soft links [N/m^2], per point on
-            rigid links and segment pairs [N/m]. The penetration under a load f
-            (per length or per point) is about ``f / k + smoothing / 2``: choose k so
-            that it is small against the radii (e.g. 1e-3 of them).
-        smoothing: delta [m], the depth over which the stiffness ramps from 0 to k
-            (the force is continuously differentiable, which Newton's method and
-            gradients need). Smaller is closer to a hard contact and stiffer to
-            integrate; 1e-2 to 1e-1 of the expected penetration is a good start.
+        stiffness: k, for the penalty the slope of the normal force per penetration
+            once deeper than ``smoothing``; for the barrier its scale (above). Per
+            unit length on soft links [N/m^2], per point on rigid links and segment
+            pairs [N/m]. Choose the penalty's k so that the penetration is small
+            against the radii (e.g. 1e-3 of them).
+        smoothing: delta [m]. Penalty: the depth over which the stiffness ramps
+            from 0 to k (smaller is closer to a hard contact and stiffer to
+            integrate; 1e-2 to 1e-1 of the expected penetration is a good start).
+            Barrier: its reach g_hat, the gap at which the force starts.
         damping: c, normal damping per unit normal velocity [N s/m^2 per length on
-            soft links, N s/m per point], active with the same ramp over delta.
+            soft links, N s/m per point], switched on smoothly over delta (the
+            penalty's ramp; the barrier's outer half of its reach).
         static_friction: mu_s >= 0, the friction coefficient at rest.
         kinetic_friction: mu_k >= 0, the coefficient when sliding (default mu_s).
         stick_velocity: v_s [m/s] > 0, the slip speed below which friction is
@@ -100,6 +147,7 @@ class ContactLaw(eqx.Module):
             component along that axis meets ``w mu_f + (1 - w) mu`` with
             ``w = (1 + tanh(v_x / v_s)) / 2`` (mu_f forward, mu backward), the rest
             of the slip mu. None: isotropic.
+        kind: ``"penalty"`` or ``"barrier"`` (static).
     """
 
     stiffness: Float[Array, ""]
@@ -110,6 +158,7 @@ class ContactLaw(eqx.Module):
     stick_velocity: Float[Array, ""]
     stribeck_velocity: Float[Array, ""]
     forward_friction: Float[Array, ""] | None
+    kind: str = eqx.field(static=True)
 
     def __init__(
         self,
@@ -121,7 +170,13 @@ class ContactLaw(eqx.Module):
         stick_velocity: ArrayLike = 1e-3,
         stribeck_velocity: ArrayLike = 1e-2,
         forward_friction: ArrayLike | None = None,
+        kind: str = "penalty",
     ):
+        if kind not in ("penalty", "barrier"):
+            raise ValueError(
+                f"ContactLaw.kind must be 'penalty' or 'barrier', got {kind!r}."
+            )
+        self.kind = kind
         self.stiffness = _scalar("ContactLaw.stiffness", stiffness, True)
         self.smoothing = _scalar("ContactLaw.smoothing", smoothing, True)
         self.damping = _scalar("ContactLaw.damping", damping, False)
@@ -144,14 +199,19 @@ class ContactLaw(eqx.Module):
         )
 
     def normal_force(self, d: Array) -> Array:
-        """``f_n(d)``: the elastic normal force at penetration ``d`` (>= 0)."""
+        """``f_n(d)``: the elastic normal force at penetration ``d`` (gap: d < 0)."""
+        if self.kind == "barrier":
+            return _barrier(self, d)[0]
         k, delta = self.stiffness, self.smoothing
         dp = jnp.maximum(d, 0.0)
         ramp = k * dp * dp / (2.0 * delta)
         return jnp.where(d >= delta, k * (d - 0.5 * delta), ramp)
 
     def potential(self, d: Array) -> Array:
-        """``U(d) = int_0^d f_n``: the elastic contact energy (per length or point)."""
+        """``U(d) = int f_n``, zero where the law does not act: the elastic contact
+        energy (per length or point)."""
+        if self.kind == "barrier":
+            return _barrier(self, d)[1]
         k, delta = self.stiffness, self.smoothing
         dp = jnp.maximum(d, 0.0)
         cubic = k * dp**3 / (6.0 * delta)
@@ -159,14 +219,33 @@ class ContactLaw(eqx.Module):
         return jnp.where(d >= delta, full, cubic)
 
     def penetration(self, f: Array) -> Array:
-        """The penetration at which the elastic normal force is ``f`` (inverse law)."""
+        """The penetration at which the elastic normal force is ``f`` (inverse law;
+        the barrier's is negative, a gap: 60 bisections of its monotone force)."""
+        if self.kind == "barrier":
+            f = jnp.asarray(f, dtype=self.stiffness.dtype)
+            lo = jnp.full_like(f, -self.smoothing)  # the force's onset
+            hi = jnp.full_like(f, 0.0)
+            hi = jnp.maximum(hi, (f - _barrier(self, hi)[0]) / self.stiffness)
+
+            def halve(_, b):
+                lo, hi = b
+                mid = 0.5 * (lo + hi)
+                below = _barrier(self, mid)[0] < f
+                return jnp.where(below, mid, lo), jnp.where(below, hi, mid)
+
+            lo, hi = jax.lax.fori_loop(0, 60, halve, (lo, hi))
+            return 0.5 * (lo + hi)
         k, delta = self.stiffness, self.smoothing
         small = jnp.sqrt(2.0 * delta * jnp.maximum(f, 0.0) / k)
         return jnp.where(f >= 0.5 * k * delta, f / k + 0.5 * delta, small)
 
     def ramp(self, d: Array) -> Array:
-        """Smooth step from 0 (d <= 0) to 1 (d >= delta) that switches damping on."""
-        s = jnp.clip(d / self.smoothing, 0.0, 1.0)
+        """Smooth step from 0 to 1 that switches damping on: over ``[0, delta]`` of
+        penetration (penalty), over the outer half of the barrier's reach."""
+        if self.kind == "barrier":
+            s = jnp.clip(2.0 * (d + self.smoothing) / self.smoothing, 0.0, 1.0)
+        else:
+            s = jnp.clip(d / self.smoothing, 0.0, 1.0)
         return s * s * (3.0 - 2.0 * s)
 
     def friction_coefficient(self, speed: Array) -> Array:
