@@ -123,7 +123,9 @@ def test_barrier_floor_carries_the_weight_across_a_gap():
     assert np.all(d < 0), "the barrier let the rod touch the floor"
     # every sample carries about w per length at the law's gap (1 % spread from the
     # sampled support, as for the penalty above)
-    np.testing.assert_allclose(d, float(law.penetration(jnp.asarray(W_LINE))), rtol=0.02)
+    np.testing.assert_allclose(
+        d, float(law.penetration(jnp.asarray(W_LINE))), rtol=0.02
+    )
     assert bool(np.all(np.asarray(cs.active)))
 
 

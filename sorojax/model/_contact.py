@@ -208,8 +208,10 @@ class ContactLaw(eqx.Module):
         return jnp.where(d >= delta, k * (d - 0.5 * delta), ramp)
 
     def potential(self, d: Array) -> Array:
-        """``U(d) = int f_n``, zero where the law does not act: the elastic contact
-        energy (per length or point)."""
+        """``U(d) = int f_n``: the elastic contact energy (per length or point).
+
+        Zero where the law does not act.
+        """
         if self.kind == "barrier":
             return _barrier(self, d)[1]
         k, delta = self.stiffness, self.smoothing
@@ -219,8 +221,10 @@ class ContactLaw(eqx.Module):
         return jnp.where(d >= delta, full, cubic)
 
     def penetration(self, f: Array) -> Array:
-        """The penetration at which the elastic normal force is ``f`` (inverse law;
-        the barrier's is negative, a gap: 60 bisections of its monotone force)."""
+        """The penetration at which the elastic normal force is ``f`` (inverse law).
+
+        The barrier's is negative, a gap (60 bisections of its monotone force).
+        """
         if self.kind == "barrier":
             f = jnp.asarray(f, dtype=self.stiffness.dtype)
             lo = jnp.full_like(f, -self.smoothing)  # the force's onset
@@ -240,8 +244,11 @@ class ContactLaw(eqx.Module):
         return jnp.where(f >= 0.5 * k * delta, f / k + 0.5 * delta, small)
 
     def ramp(self, d: Array) -> Array:
-        """Smooth step from 0 to 1 that switches damping on: over ``[0, delta]`` of
-        penetration (penalty), over the outer half of the barrier's reach."""
+        """Smooth step from 0 to 1 that switches damping on.
+
+        Over ``[0, delta]`` of penetration (penalty), over the outer half of the
+        barrier's reach.
+        """
         if self.kind == "barrier":
             s = jnp.clip(2.0 * (d + self.smoothing) / self.smoothing, 0.0, 1.0)
         else:
