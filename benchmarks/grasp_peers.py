@@ -1,0 +1,401 @@
+"""The soft grasp's speed against MuJoCo: the same scene, 1 s simulated, warm.
+
+The scene is ``examples/grasp.py`` (imported, its numbers read from its linkage): a
+palm on a prescribed vertical slide, two soft fingers (8 cm, r 6 mm, E 1 MPa, rho
+1100, eta 500 Pa s) curled toward a free 2 cm, 20 g ball by a cable 4 mm off their
+axis (tension ramped to T over 0.3 s), friction 0.8, a floor; the palm lifts 5 cm
+between 0.4 and 0.8 s.
+
+* **sorojax**: ``examples.grasp.grasp`` (Tsit5, rtol 1e-4, atol 1e-7) at T = 4 N. Its
+  first call (trace, compile and one run; persistent compilation cache off) and the
+  median of warm calls are timed.
+* **MuJoCo** (the ``mujoco`` package; MJCF written here as a string):
+
+  - each finger a ``<composite type="cable">`` of ``--segments`` capsules (default 8:
+    1 cm, the spacing of sorojax's contact samples) with the
+    ``mujoco.elasticity.cable`` plugin (bend = E, twist = G = E / (2 (1 + nu))); the
+    plugin gives joint k (k >= 1) the stiffness EI / ds and none to the joint at the
+    palm, so that joint gets a spring of its own, 2 EI / ds (the clamp's half cell).
+    With it the cable's tip sags under its own weight within 1.1 % of w L^4 / (8 EI)
+    and a free finger curled by 4 N * 4 mm ends within 1e-3 L of the exact circle
+    (``cantilever_check``); material damping as joint damping 3 eta I / ds (sorojax's
+    bending damping is 3 eta I per length, ``section_matrices``);
+  - the cable as what it is in a bending-only rod: a uniform internal moment T d
+    (the cable's length changes by d times the bending angle, so its virtual work
+    is T d times the angles), applied as a motor on every joint of the finger
+    (joint at the palm included) about its bending axis, gear d, control T;
+  - the palm a slide joint with a position actuator (kp, kv = critical for the
+    carried mass) whose target is the prescribed height plus kv / kp times its rate
+    (no lag while it moves); its tracking error is reported;
+  - contact: MuJoCo's soft constraints, elliptic cones, mu 0.8 everywhere, time
+    constant sqrt(m_ball / k) (the frequency of sorojax's penalty k = 2e3 N/m
+    under the ball), damping ratio 1 (sorojax's contact damping, 1 N s/m, is
+    lighter: ratio 0.08). The fingers touch the ball and the floor, not each other;
+  - integrator ``implicitfast``; the timestep is the largest of a sweep at which
+    the grasp ends within 1 mm of the finest step's ball height and slip;
+  - timed both as a Python loop of ``mj_step`` (controls written each step) and
+    as ``mujoco.rollout`` (the same controls precomputed, stepped in C++).
+
+PyElastica (installed) is not in the comparison: it has rod-sphere contact with
+friction (``RodSphereContact``) and rigid spheres, but no contact between a rigid
+body and a plane (``CylinderPlaneContact`` only), so the ball cannot rest on the
+floor before the grasp without a force written for it, and its rods are extensible
+and shearable (the fingers here are bending-only) with an explicit symplectic
+stepper whose step the 1 cm, 1 MPa elements bound.
+
+Run::
+
+    .venv/bin/python benchmarks/grasp_peers.py [--repeats 3] [--t1 1.0] [--tension 4]
+
+Writes ``benchmarks/results/grasp_peers.json`` (overwritten) and prints a table.
+"""
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import time
+
+os.environ.setdefault("SOROJAX_CACHE_DIR", "off")
+
+import jax  # noqa: E402
+
+jax.config.update("jax_enable_x64", True)
+jax.config.update("jax_enable_compilation_cache", False)
+
+import mujoco  # noqa: E402
+import mujoco.rollout  # noqa: E402
+import numpy as np  # noqa: E402
+from _common import ROOT, environment  # noqa: E402
+
+sys.path.insert(0, str(ROOT / "examples"))
+import grasp as ex  # noqa: E402
+
+OUT = ROOT / "benchmarks" / "results" / "grasp_peers.json"
+T_LIFT = 0.4  # the lift starts (examples/grasp.py: inputs)
+
+
+def scene():
+    """The grasp's numbers, read from ``examples/grasp.py``'s linkage."""
+    lk = ex.gripper()
+    finger, mat = lk.links[1], lk.links[1].material
+    law = lk.contact.law
+    place = np.asarray(lk.placements)
+    return dict(
+        L=float(finger.length), r=ex.R_FINGER, E=float(mat.E),
+        poisson=float(mat.poisson), rho=float(mat.rho), eta=float(mat.eta),
+        d=float(lk.actuators[1].route[0].path.z), m_palm=float(lk.links[0].mass),
+        m_ball=float(lk.links[3].mass), R_ball=ex.R_BALL, palm_z=float(place[0, 2, 3]),
+        finger_x=float(place[2, 0, 3]), mu=float(law.static_friction),
+        k=float(law.stiffness), c=float(law.damping), lift=ex.LIFT, g=ex.G,
+    )  # fmt: skip
+
+
+def palm_height(t, p):
+    """The prescribed palm height [m] above its start and its rate [m/s]."""
+    s = np.clip((t - T_LIFT) / 0.4, 0.0, 1.0)
+    rate = np.where((t > T_LIFT) & (t < T_LIFT + 0.4), p["lift"] / 0.4, 0.0)
+    return p["lift"] * s, rate
+
+
+def tension(t, T):
+    """The cables' tension [N]: a ramp to ``T`` over 0.3 s."""
+    return T * np.clip(t / 0.3, 0.0, 1.0)
+
+
+# ------------------------------------------------------------------------ MuJoCo
+def _finger(name, x, p, n_seg, flip):
+    """MJCF of one finger: a cable hanging from the palm, local z toward the ball."""
+    ds = p["L"] / n_seg
+    area, inertia = np.pi * p["r"] ** 2, np.pi * p["r"] ** 4 / 4
+    # base frame: x down the finger, z toward the ball (sorojax's cable side)
+    xy = "0 0 -1 0 -1 0" if flip else "0 0 -1 0 1 0"
+    shear = p["E"] / (2 * (1 + p["poisson"]))
+    return f"""
+      <body name="{name}base" pos="{x} 0 0" xyaxes="{xy}">
+        <composite type="cable" prefix="{name}" curve="s" count="{n_seg + 1} 1 1"
+                   size="{p["L"]}" initial="ball">
+          <plugin plugin="mujoco.elasticity.cable">
+            <config key="twist" value="{shear}"/>
+            <config key="bend" value="{p["E"]}"/>
+          </plugin>
+          <joint kind="main" damping="{3 * p["eta"] * inertia / ds}"/>
+          <geom type="capsule" size="{p["r"]}" mass="{p["rho"] * area * ds}"
+                contype="2" conaffinity="1"/>
+        </composite>
+      </body>"""
+
+
+def mjcf(p, n_seg, dt, kp=2e4):
+    """The grasp as MJCF: floor, palm on a slide, two cable fingers, a free ball."""
+    carried = p["m_palm"] + p["m_ball"] + 2 * p["rho"] * np.pi * p["r"] ** 2 * p["L"]
+    kv = 2 * np.sqrt(kp * carried)
+    tc = np.sqrt(p["m_ball"] / p["k"])
+    joints = [f"J_{i}" for i in range(1, n_seg - 1)]
+    motors = "\n".join(
+        f'    <motor name="{f}{j}" joint="{f}{j}" gear="0 -{p["d"]} 0"/>'
+        for f in "LR"
+        for j in ["J_first", *joints, "J_last"]
+    )
+    return f"""
+<mujoco model="grasp">
+  <extension><plugin plugin="mujoco.elasticity.cable"/></extension>
+  <option timestep="{dt}" integrator="implicitfast" cone="elliptic"
+          gravity="0 0 {-p["g"]}"/>
+  <default>
+    <geom friction="{p["mu"]} 0.005 0.0001" solref="{tc} 1" condim="3"/>
+  </default>
+  <worldbody>
+    <geom name="floor" type="plane" size="0.3 0.3 0.01" contype="1" conaffinity="3"/>
+    <body name="palm" pos="0 0 {p["palm_z"]}">
+      <joint name="palm" type="slide" axis="0 0 1"/>
+      <inertial pos="0 0 0" mass="{p["m_palm"]}" diaginertia="1e-5 1e-5 1e-5"/>
+      {_finger("L", -abs(p["finger_x"]), p, n_seg, False)}
+      {_finger("R", abs(p["finger_x"]), p, n_seg, True)}
+    </body>
+    <body name="ball" pos="0 0 {p["R_ball"]}">
+      <freejoint/>
+      <geom type="sphere" size="{p["R_ball"]}" mass="{p["m_ball"]}"
+            contype="1" conaffinity="2"/>
+    </body>
+  </worldbody>
+  <actuator>
+    <position name="palm" joint="palm" kp="{kp}" kv="{kv}"/>
+{motors}
+  </actuator>
+</mujoco>"""
+
+
+def mj_model(p, n_seg, dt):
+    """Compiled model with the clamp springs (2 EI / ds at the palm's joints)."""
+    m = mujoco.MjModel.from_xml_string(mjcf(p, n_seg, dt))
+    EI = p["E"] * np.pi * p["r"] ** 4 / 4
+    for f in "LR":
+        m.jnt_stiffness[m.joint(f"{f}J_first").id] = 2 * EI / (p["L"] / n_seg)
+    return m
+
+
+def mj_controls(m, p, T, t1):
+    """Per-step controls ``(n_step, nu)``: palm target, then every joint's tension."""
+    dt = m.opt.timestep
+    n = int(round(t1 / dt))
+    t = np.arange(n) * dt  # the control held over step k starts at t_k
+    h, rate = palm_height(t, p)
+    act = m.actuator("palm")
+    kp, kv = act.gainprm[0], -act.biasprm[2]
+    U = np.empty((n, m.nu))
+    U[:, 0] = h + kv / kp * rate
+    U[:, 1:] = tension(t, T)[:, None]
+    return U
+
+
+def mj_rollout(m, U):
+    """``(times, qpos)`` of one rollout from rest; the state after every step."""
+    d = mujoco.MjData(m)
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    s0 = np.empty(mujoco.mj_stateSize(m, spec))
+    mujoco.mj_getState(m, d, s0, spec)
+    state, _ = mujoco.rollout.rollout(m, d, s0, U[None])
+    return state[0, :, 0], state[0, :, 1 : 1 + m.nq]
+
+
+def mj_loop(m, U):
+    """A Python loop of ``mj_step`` writing the controls each step."""
+    d = mujoco.MjData(m)
+    for u in U:
+        d.ctrl[:] = u
+        mujoco.mj_step(m, d)
+    return d
+
+
+def mj_outcome(m, t, qpos, p):
+    """Ball lift and slip [mm], the palm's largest tracking error, whether it held."""
+    zb = qpos[:, m.jnt_qposadr[m.body("ball").jntadr[0]] + 2]
+    zp = qpos[:, m.jnt_qposadr[m.joint("palm").id]]
+    # MuJoCo resets a diverged simulation to its start: time must rise throughout
+    finite = bool(np.all(np.isfinite(qpos)) and np.all(np.diff(t) > 0))
+    if not finite:
+        return dict(finite=False)
+    z0 = p["R_ball"]  # the ball's start height
+    k4 = np.searchsorted(t, T_LIFT - 1e-12)
+    h, _ = palm_height(t, p)
+    return dict(
+        finite=True,
+        lift_mm=1e3 * (zb[-1] - z0),
+        slip_mm=1e3 * ((zp[-1] - 0.0) - (zb[-1] - zb[k4])),
+        palm_tracking_max_mm=1e3 * float(np.max(np.abs(zp - h))),
+        ball_height_mm={f"{s:.1f}": 1e3 * float(np.interp(s, t, zb))
+                        for s in (0.3, 0.4, 0.6, 0.8, t[-1])},
+    )  # fmt: skip
+
+
+def cantilever_check(p, n_seg):
+    """The MuJoCo finger (clamp spring included) against the rod's closed forms.
+
+    Horizontal and clamped: tip sag under its own weight against w L^4 / (8 EI),
+    and, without gravity, the tip under the cable's moment T d at 4 N against the
+    exact circle (radius EI / (T d)). Settled by a heavy joint damping.
+    """
+    L, r = p["L"], p["r"]
+    EI, w = p["E"] * np.pi * r**4 / 4, p["rho"] * np.pi * r**2 * L * p["g"] / L
+    out = {}
+    for case in ("weight", "moment"):
+        g = -p["g"] if case == "weight" else 0.0
+        xml = f"""<mujoco>
+  <extension><plugin plugin="mujoco.elasticity.cable"/></extension>
+  <option timestep="2e-4" integrator="implicitfast" gravity="0 0 {g}"/>
+  <worldbody>{_finger("L", 0.0, p, n_seg, False).replace('xyaxes="0 0 -1 0 1 0"',
+                                                       'xyaxes="1 0 0 0 1 0"')}
+  </worldbody>
+</mujoco>"""  # fmt: skip
+        m = mujoco.MjModel.from_xml_string(xml)
+        ds = L / n_seg
+        m.jnt_stiffness[m.joint("LJ_first").id] = 2 * EI / ds
+        m.dof_damping[:] *= 50.0  # settle fast: the statics are what is compared
+        d = mujoco.MjData(m)
+        M = 4.0 * p["d"]
+        tip = m.body("LB_last").id
+        for _ in range(10000):
+            if case == "moment":
+                d.xfrc_applied[tip, 3:] = (0.0, -M, 0.0)
+            mujoco.mj_step(m, d)
+        R = d.xmat[tip].reshape(3, 3)
+        end = d.xpos[tip] + R[:, 0] * ds
+        if case == "weight":
+            out["self_weight_sag_over_euler_bernoulli"] = float(
+                -end[2] / (w * L**4 / (8 * EI))
+            )
+        else:
+            kap = M / EI
+            exact = np.array([np.sin(kap * L), 0.0, (1 - np.cos(kap * L))]) / kap
+            out["curled_tip_error_over_L"] = float(np.linalg.norm(end - exact) / L)
+    return out
+
+
+def mujoco_part(p, T, t1, n_seg, dts, repeats):
+    """Timestep sweep, the chosen step's timings and physics."""
+    sweep = []
+    for dt in dts:
+        m = mj_model(p, n_seg, dt)
+        U = mj_controls(m, p, T, t1)
+        t0 = time.perf_counter()
+        t, qpos = mj_rollout(m, U)
+        wall = time.perf_counter() - t0
+        row = dict(dt=dt, steps=len(U), rollout_s=wall) | mj_outcome(m, t, qpos, p)
+        sweep.append(row)
+        print(f"MuJoCo dt {dt:.1e}: " + (
+            f"lift {row['lift_mm']:.2f} mm, slip {row['slip_mm']:.2f} mm, "
+            f"{wall:.2f} s" if row["finite"] else "not finite"))  # fmt: skip
+    ref = sweep[int(np.argmin(dts))]
+    ok = [
+        r for r in sweep
+        if r["finite"] and abs(r["lift_mm"] - ref["lift_mm"]) < 1.0
+        and abs(r["slip_mm"] - ref["slip_mm"]) < 1.0
+    ]  # fmt: skip
+    best = max(ok, key=lambda r: r["dt"])
+    m = mj_model(p, n_seg, best["dt"])
+    U = mj_controls(m, p, T, t1)
+    roll, loop = [], []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        mj_rollout(m, U)
+        roll.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        mj_loop(m, U)
+        loop.append(time.perf_counter() - t0)
+    return dict(
+        segments=n_seg, nv=m.nv, timestep_sweep=sweep, timestep=best["dt"],
+        steps=best["steps"], physics={k: best[k] for k in best if k not in (
+            "dt", "steps", "rollout_s")},
+        rollout_median_s=statistics.median(roll), rollout_min_s=min(roll),
+        loop_median_s=statistics.median(loop), loop_min_s=min(loop),
+        cantilever_check=cantilever_check(p, n_seg),
+    )  # fmt: skip
+
+
+# ----------------------------------------------------------------------- sorojax
+def sorojax_part(p, T, t1, repeats):
+    """First call and warm median of ``examples.grasp.grasp``; lift and slip."""
+    lk = ex.gripper()
+    t0 = time.perf_counter()
+    tr, ball, palm = ex.grasp(lk, T, t1)
+    first = time.perf_counter() - t0
+    ts = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        tr, ball, palm = ex.grasp(lk, T, t1)
+        ts.append(time.perf_counter() - t0)
+    t = np.asarray(tr.t)
+    k4 = np.searchsorted(t, T_LIFT - 1e-12)
+    warm = statistics.median(ts)
+    return dict(
+        n_dof=int(lk.n_dof), solver="tsit5", rtol=1e-4, atol=1e-7,
+        steps=int(tr.num_steps), rejected_steps=int(tr.num_rejected_steps),
+        first_call_s=first, warm_median_s=warm, warm_min_s=min(ts),
+        compile_s=first - warm,
+        physics=dict(
+            lift_mm=1e3 * float(ball[-1] - ball[0]),
+            slip_mm=1e3 * float((palm[-1] - palm[0]) - (ball[-1] - ball[k4])),
+            ball_height_mm={f"{s:.1f}": 1e3 * float(np.interp(s, t, ball))
+                            for s in (0.3, 0.4, 0.6, 0.8, t[-1])},
+        ),
+    )  # fmt: skip
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--t1", type=float, default=1.0)
+    ap.add_argument("--tension", type=float, default=4.0)
+    ap.add_argument("--segments", type=int, default=8)
+    ap.add_argument("--dts", type=float, nargs="+",
+                    default=[4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4, 1e-4])  # fmt: skip
+    a = ap.parse_args(argv)
+    env = environment(mujoco_version=mujoco.__version__)
+    p = scene()
+    mj = mujoco_part(p, a.tension, a.t1, a.segments, a.dts, a.repeats)
+    sj_ = sorojax_part(p, a.tension, a.t1, a.repeats)
+    best_mj = min(mj["rollout_median_s"], mj["loop_median_s"])
+    res = dict(
+        what=f"examples/grasp.py at T = {a.tension:g} N for {a.t1:g} s: sorojax "
+        "against MuJoCo",
+        t1=a.t1, tension=a.tension, scene=p, sorojax=sj_, mujoco=mj,
+        ratio_sorojax_warm_over_mujoco_rollout=sj_["warm_median_s"]
+        / mj["rollout_median_s"],
+        ratio_sorojax_warm_over_mujoco_loop=sj_["warm_median_s"] / mj["loop_median_s"],
+        ratio_sorojax_warm_over_mujoco_best=sj_["warm_median_s"] / best_mj,
+        environment=env | {"load_average_at_end": list(os.getloadavg())},
+    )  # fmt: skip
+    OUT.parent.mkdir(parents=True, exist_ok=True)
+    OUT.write_text(json.dumps(res, indent=1))
+    _table(res)
+    print(f"wrote {OUT}")
+    return res
+
+
+def _table(res):
+    s, m, t1 = res["sorojax"], res["mujoco"], res["t1"]
+    rows = [
+        ("sorojax (Tsit5, adaptive)", f"{s['steps']}", f"{s['warm_median_s']:.2f}",
+         f"{s['warm_median_s'] / t1:.2f}", f"{s['compile_s']:.1f}", s["physics"]),
+        (f"MuJoCo rollout (dt {m['timestep']:g})", f"{m['steps']}",
+         f"{m['rollout_median_s']:.3f}", f"{m['rollout_median_s'] / t1:.3f}", "-",
+         m["physics"]),
+        (f"MuJoCo mj_step loop (dt {m['timestep']:g})", f"{m['steps']}",
+         f"{m['loop_median_s']:.3f}", f"{m['loop_median_s'] / t1:.3f}", "-",
+         m["physics"]),
+    ]  # fmt: skip
+    print(f"\n{'':38s} {'steps':>7s} {'warm [s]':>9s} {'per sim s':>9s} "
+          f"{'compile':>8s} {'lift mm':>8s} {'slip mm':>8s}")  # fmt: skip
+    for name, n, w, ps, c, ph in rows:
+        print(f"{name:38s} {n:>7s} {w:>9s} {ps:>9s} {c:>8s} "
+              f"{ph['lift_mm']:8.2f} {ph['slip_mm']:8.2f}")  # fmt: skip
+    print(
+        f"sorojax warm / MuJoCo: {res['ratio_sorojax_warm_over_mujoco_rollout']:.0f}x"
+        f" (rollout), {res['ratio_sorojax_warm_over_mujoco_loop']:.0f}x (loop)"
+    )
+
+
+if __name__ == "__main__":
+    main()
