@@ -20,7 +20,13 @@ Five measurements, all in this process (persistent compilation cache off):
    the plane (finite, no penetration deeper than 1 mm) for 0.5 s.
 6. ``touchdown``: the heavy cantilever resting on a frictionless floor against the
    elastica reference (tests/contact_reference.py) as the contact stiffness rises:
-   centre-line error, clamp force error, where the contact zone starts.
+   centre-line error, clamp force error, where the contact zone starts, and the
+   equivalent touchdown point (that of a rigid floor whose reaction has the same
+   resultant force and moment, ``contact_reference.equivalent_touchdown``).
+7. ``laws``: the penalty against the barrier law (``ContactLaw.kind``) on the heavy
+   cantilever (statics: errors, Newton iterations, closest approach) and on the
+   rod dropped onto the floor (dynamics: Tsit5 and ROS34PW2 steps, warm time,
+   deepest penetration or smallest gap, energy drift).
 
 Run::
 
@@ -47,7 +53,10 @@ from _common import ROOT, environment, timed  # noqa: E402
 import sorojax as sj  # noqa: E402
 
 sys.path.insert(0, str(ROOT / "tests"))
-from contact_reference import heavy_cantilever_on_floor  # noqa: E402
+from contact_reference import (  # noqa: E402
+    equivalent_touchdown,
+    heavy_cantilever_on_floor,
+)
 
 G = 9.81
 
@@ -207,40 +216,102 @@ def fixed_steps():
     return out
 
 
-def touchdown():
-    L, EI, w, d, r = 1.0, 0.05, 1.0, 0.05, 0.01
+def cantilever_on_floor(law, L=1.0, EI=0.05, w=1.0, d=0.05, r=0.01):
+    """The heavy cantilever 4 x order-3 bending divisions, clamped d + r above a
+    floor of the given law, solved; errors against the elastica reference."""
     ref = heavy_cantilever_on_floor(L, EI, w, d)
+    divs = [sj.Division(L / 4, sj.CircularSection(r),
+                        sj.LegendreBasis((0, 1, 0, 0, 0, 0), 3)) for _ in range(4)]  # fmt: skip
+    rod = sj.SoftLink(divs, sj.Material(E=EI / (np.pi * r**4 / 4), poisson=0.5,
+                                        rho=w / (np.pi * r**2 * G)))  # fmt: skip
+    place = np.eye(4)
+    place[2, 3] = d + r
+    lk = sj.Linkage([rod], placements=place[None], gravity=(0, 0, -G),
+                    contact=sj.Contact(sj.Plane(), law, spacing=0.01))  # fmt: skip
+    t0 = time.perf_counter()
+    sol = sj.solve_statics(lk, max_steps=200, throw=False)
+    first = time.perf_counter() - t0
+    g = np.asarray(sj.forward_kinematics(lk, sol.q))
+    lay = lk.layout
+    pts = np.where(lay.point_kind == 2)[0]
+    s = (lay.point_division[pts] - 1 + lay.point_X1[pts]) * L / 4
+    err = np.max(np.hypot(g[pts, 0, 3] - np.interp(s, ref["s"], ref["x"]),
+                          g[pts, 2, 3] - np.interp(s, ref["s"], ref["z"]) - r))  # fmt: skip
+    cs = sol.contact
+    fz = w * L - float(cs.total_force()[2])
+    on = np.asarray(cs.normal_force) > 0
+    a_eq = equivalent_touchdown(np.asarray(cs.force)[:, 2],
+                                np.asarray(cs.point)[:, 0], w, L, g[-1, 0, 3])  # fmt: skip
+    return dict(result=int(sol.result._value), newton=int(sol.num_steps),
+                first_call_s=first, shape_error_L=err / L,
+                clamp_force_rel_error=abs(fz / ref["clamp_force"][1] - 1),
+                contact_start_x=float(np.min(np.asarray(cs.point)[on, 0])),
+                touchdown_x=float(ref["x"][-1] - (L - ref["a"])),
+                equivalent_touchdown=a_eq,
+                touchdown_error_L=abs(a_eq - ref["a"]) / L,
+                deepest_penetration=float(np.max(np.asarray(cs.penetration)[on])),
+                touchdown_a=ref["a"])  # fmt: skip
+
+
+def touchdown():
     out = []
     for k in (1e4, 1e5, 1e6, 1e7):
-        divs = [sj.Division(L / 4, sj.CircularSection(r),
-                            sj.LegendreBasis((0, 1, 0, 0, 0, 0), 3)) for _ in range(4)]  # fmt: skip
-        rod = sj.SoftLink(divs, sj.Material(E=EI / (np.pi * r**4 / 4), poisson=0.5,
-                                            rho=w / (np.pi * r**2 * G)))  # fmt: skip
-        place = np.eye(4)
-        place[2, 3] = d + r
-        lk = sj.Linkage([rod], placements=place[None], gravity=(0, 0, -G),
-                        contact=sj.Contact(sj.Plane(),
-                                           sj.ContactLaw(stiffness=k, smoothing=1e-7),
-                                           spacing=0.01))  # fmt: skip
-        sol = sj.solve_statics(lk, max_steps=200, throw=False)
-        g = np.asarray(sj.forward_kinematics(lk, sol.q))
-        lay = lk.layout
-        pts = np.where(lay.point_kind == 2)[0]
-        s = (lay.point_division[pts] - 1 + lay.point_X1[pts]) * L / 4
-        err = np.max(np.hypot(g[pts, 0, 3] - np.interp(s, ref["s"], ref["x"]),
-                              g[pts, 2, 3] - np.interp(s, ref["s"], ref["z"]) - r))  # fmt: skip
-        cs = sol.contact
-        fz = w * L - float(cs.total_force()[2])
-        on = np.asarray(cs.penetration) > 0
-        start = float(np.min(np.asarray(cs.point)[on, 0]))
-        row = dict(stiffness=k, result=int(sol.result._value), newton=int(sol.num_steps),
-                   shape_error_L=err / L,
-                   clamp_force_rel_error=abs(fz / ref["clamp_force"][1] - 1),
-                   contact_start_x=start, touchdown_a=ref["a"])  # fmt: skip
+        row = dict(stiffness=k) | cantilever_on_floor(
+            sj.ContactLaw(stiffness=k, smoothing=1e-7)
+        )
         out.append(row)
-        print(f"touchdown k={k:8.0e}: shape {err / L:.2e} L, clamp force "
-              f"{row['clamp_force_rel_error']:.1e}, contact from x = {start:.4f} "
-              f"(rigid floor: touchdown a = {ref['a']:.4f}), {row['newton']} Newton")  # fmt: skip
+        print(f"touchdown k={k:8.0e}: shape {row['shape_error_L']:.2e} L, clamp force "
+              f"{row['clamp_force_rel_error']:.1e}, contact from x = "
+              f"{row['contact_start_x']:.4f}, equivalent touchdown "
+              f"{row['equivalent_touchdown']:.4f} (rigid floor: a = "
+              f"{row['touchdown_a']:.4f}, error {row['touchdown_error_L']:.1e} L), "
+              f"{row['newton']} Newton")  # fmt: skip
+    return out
+
+
+LAWS = {
+    # name: (ContactLaw keywords for the cantilever (w = 1 N/m), for the dropped
+    # rod (w = 3.1 N/m)); the barrier's reach 1e-4 m = 1e-2 of the radius, its
+    # k g_hat near the load per length
+    "penalty": (dict(stiffness=1e6, smoothing=1e-7),
+                dict(stiffness=1e4, smoothing=1e-4, damping=10.0)),
+    "barrier": (dict(stiffness=1e4, smoothing=1e-4, kind="barrier"),
+                dict(stiffness=3e4, smoothing=1e-4, damping=10.0, kind="barrier")),
+    "barrier_tight": (dict(stiffness=1e5, smoothing=1e-5, kind="barrier"),
+                      dict(stiffness=3e5, smoothing=1e-5, damping=10.0,
+                           kind="barrier")),
+}  # fmt: skip
+
+
+def laws(repeats):
+    out = []
+    for name, (static_kw, dynamic_kw) in LAWS.items():
+        st = cantilever_on_floor(sj.ContactLaw(**static_kw))
+        print(f"law {name:14s} statics: shape {st['shape_error_L']:.1e} L, clamp "
+              f"force {st['clamp_force_rel_error']:.1e}, touchdown "
+              f"{st['touchdown_error_L']:.1e} L, closest {st['deepest_penetration']:.1e}"
+              f" m, {st['newton']} Newton, first call {st['first_call_s']:.1f} s")  # fmt: skip
+        row = dict(law=name, statics=st, dynamics={})
+        for solver in ("tsit5", "ros34pw2"):
+            lk = dropped(True)
+            lk = sj.Linkage(lk.links, placements=lk.placements, gravity=(0, 0, -G),
+                            contact=sj.Contact(lk.contact.obstacles,
+                                               sj.ContactLaw(**dynamic_kw),
+                                               spacing=lk.contact.spacing))  # fmt: skip
+            q0 = jnp.zeros(lk.n_dof).at[0].set(0.1)
+            r = run_sim(lk, q0, 1.0, solver, repeats)
+            tr = sj.simulate(lk, 1.0, q0, solver=solver, n_save=201, rtol=1e-5,
+                             atol=1e-8, max_steps=400_000, throw=False)  # fmt: skip
+            e = np.asarray(jax.vmap(lambda q, v, lk=lk: sj.total_energy(lk, q, v))(
+                tr.q, tr.qd))  # fmt: skip
+            r |= dict(deepest_penetration=float(jnp.max(tr.contact.penetration)),
+                      largest_energy_rise_rel=float(np.max(np.diff(e)) / abs(e[0])),
+                      energy_end_rel=float(e[-1] / e[0]))  # fmt: skip
+            row["dynamics"][solver] = r
+            print(f"law {name:14s} {solver:9s}: {r['steps']:6d} steps, warm "
+                  f"{r['warm_median_s']:.3f} s, deepest {r['deepest_penetration']:.1e}"
+                  f" m, energy rise {r['largest_energy_rise_rel']:.1e}")  # fmt: skip
+        out.append(row)
     return out
 
 
@@ -281,6 +352,11 @@ def chart(res, path):
                label="centre line (max) / L")  # fmt: skip
     ax[2].plot([r["stiffness"] for r in td], [r["clamp_force_rel_error"] for r in td],
                "s-", label="clamp force (rel.)")  # fmt: skip
+    ax[2].plot([r["stiffness"] for r in td], [r["touchdown_error_L"] for r in td],
+               "^-", label="equivalent touchdown / L")  # fmt: skip
+    ax[2].plot([r["stiffness"] for r in td],
+               [abs(r["contact_start_x"] - r["touchdown_x"]) for r in td], "v:",
+               label="where contact starts (x) / L")  # fmt: skip
     ax[2].set(xscale="log", yscale="log", xlabel="contact stiffness [N/m^2]",
               title="heavy cantilever on a floor vs elastica")  # fmt: skip
     ax[2].legend()
@@ -299,6 +375,7 @@ def main():
     res["stiffness"] = stiffness(a.repeats)
     res["fixed_steps"] = fixed_steps()
     res["touchdown"] = touchdown()
+    res["laws"] = laws(a.repeats)
     out = ROOT / "benchmarks" / "results" / "contact.json"
     out.write_text(json.dumps(res, indent=1))
     chart(res, ROOT / "benchmarks" / "results" / "contact.png")

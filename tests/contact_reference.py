@@ -299,3 +299,22 @@ def heavy_cantilever_on_floor(
         "theta": theta,
         "total_floor_reaction": R + w * (L - a),
     }
+
+
+def equivalent_touchdown(
+    force_z: np.ndarray, x: np.ndarray, w: float, L: float, x_tip: float
+) -> float:
+    """Arc length of the touchdown point of a rigid floor with the same reaction.
+
+    A penalty or barrier floor spreads the touchdown reaction over a zone; a rigid
+    floor puts a point reaction R at the touchdown point (arc length a) and carries
+    w per length on the flat part from there to the tip. Given the floor's vertical
+    contact forces ``force_z`` at horizontal positions ``x``, their resultant
+    F = R + w u and moment M = F x_tip - u (F - w u / 2) about x = 0 (u = L - a, the
+    flat length, ``x_tip`` the tip's horizontal position) give u as the smaller
+    root of ``w u^2 / 2 - F u + F x_tip - M = 0``.
+    """
+    F = float(np.sum(force_z))
+    M = float(np.sum(force_z * x))
+    u = (F - math.sqrt(F * F - 2.0 * w * (F * x_tip - M))) / w
+    return L - u

@@ -234,6 +234,12 @@ def _jacobian_and_values(f_aux, x):
     return jax.jacfwd(f_and_out, has_aux=True)(x)
 
 
+def _has_barrier(contact) -> bool:
+    """Whether any of the contact's laws is a barrier."""
+    laws = (contact.law, *contact.obstacle_laws)
+    return any(law.kind == "barrier" for law in laws)
+
+
 def _newton(
     fn_aux,
     x0,
@@ -273,12 +279,14 @@ def _newton(
     coordinate moves by more than ``max_step`` per iteration (the step is scaled
     down, its direction kept). With ``regularise`` (contact scenes) a singular
     Jacobian takes a Levenberg-shifted step instead of failing. ``contact_rows =
-    (start, depth)``: ``aux[start:]`` are contact penetrations d, and a step is
-    shortened so that, by its linear prediction, no contact ends deeper than
-    ``max(depth, 8 d)`` (a free body does not jump through what it touches, nor
-    a just-touching rod through a thin one; a contact that must go deeper grows
-    eightfold per iteration). A step that made the residual grow halves the next
-    (contact's kinks can make Newton cycle).
+    (start, depth, barrier)``: ``aux[start:]`` are contact penetrations d, and a
+    step is shortened so that, by its linear prediction, no contact ends deeper
+    than ``max(depth, 8 d)`` (a free body does not jump through what it touches,
+    nor a just-touching rod through a thin one; a contact that must go deeper
+    grows eightfold per iteration); with ``barrier`` no gap closes by more than
+    half in one step (the fraction-to-boundary rule of interior-point methods,
+    which keeps a barrier law's contacts apart). A step that made the residual
+    grow halves the next (contact's kinks can make Newton cycle).
 
     Returns ``(x, f, aux, (J, J_aux), steps, status)`` (``J_aux = daux/dx``), status
     0 converged, 1 out of steps, 2 non-finite values, 3 failed linear solve.
@@ -361,10 +369,12 @@ def _newton(
         # guess of a clamped-clamped rod diverged); near a root steps are far below.
         dx = dx / jnp.maximum(jnp.max(jnp.abs(dx[:n_eq]), initial=0.0) / max_step, 1.0)
         if contact_rows is not None:
-            start, depth = contact_rows
+            start, depth, barrier = contact_rows
             d = jnp.where(jnp.isfinite(aux[start:]), aux[start:], 0.0)
             deeper = -(jnp.where(finite, J_aux[start:], 0.0) @ dx)
             room = jnp.maximum(depth, 8.0 * d) - d  # > 0
+            if barrier:  # a gap closes by at most half per step (interior points)
+                room = jnp.where(d < 0, -0.5 * d, room)
             ratio = jnp.where(deeper > 0, deeper / room, 0.0)
             dx = dx / jnp.maximum(jnp.max(ratio, initial=0.0), 1.0)
         solved = solved & jnp.all(jnp.isfinite(dx))
@@ -520,7 +530,9 @@ def _solve_statics(
             n_mult=n_c,
             max_step=load_increment,
             regularise=linkage.contact is not None,
-            contact_rows=None if linkage.contact is None else (n, contact_cap),
+            contact_rows=None
+            if linkage.contact is None
+            else (n, contact_cap, _has_barrier(linkage.contact)),
         )
         result = RESULTS.where(
             status == 0,
