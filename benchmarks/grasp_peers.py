@@ -318,6 +318,7 @@ def mujoco_part(p, T, t1, n_seg, dts, impratio, repeats):
         steps=best["steps"], physics={k: best[k] for k in best if k not in (
             "dt", "steps", "rollout_s")},
         rollout_median_s=statistics.median(roll), rollout_min_s=min(roll),
+        rollout_per_step_ms=1e3 * statistics.median(roll) / len(U),
         loop_median_s=statistics.median(loop), loop_min_s=min(loop),
         physics_impratio_1=soft, cantilever_check=cantilever_check(p, n_seg),
     )  # fmt: skip
@@ -342,7 +343,7 @@ def sorojax_part(p, T, t1, repeats):
         n_dof=int(lk.n_dof), solver="tsit5", rtol=1e-4, atol=1e-7,
         steps=int(tr.num_steps), rejected_steps=int(tr.num_rejected_steps),
         first_call_s=first, warm_median_s=warm, warm_min_s=min(ts),
-        compile_s=first - warm,
+        compile_s=first - warm, warm_per_step_ms=1e3 * warm / int(tr.num_steps),
         physics=dict(
             lift_mm=1e3 * float(ball[-1] - ball[0]),
             slip_mm=1e3 * float((palm[-1] - palm[0]) - (ball[-1] - ball[k4])),
@@ -362,7 +363,7 @@ def main(argv=None):
     ap.add_argument("--dts", type=float, nargs="+",
                     default=[4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4, 1e-4])  # fmt: skip
     a = ap.parse_args(argv)
-    env = environment(mujoco_version=mujoco.__version__)
+    env = environment(mujoco_version=mujoco.__version__, cpu_model=_cpu_model())
     p = scene()
     mj = mujoco_part(p, a.tension, a.t1, a.segments, a.dts, a.impratio, a.repeats)
     sj_ = sorojax_part(p, a.tension, a.t1, a.repeats)
@@ -384,22 +385,31 @@ def main(argv=None):
     return res
 
 
+def _cpu_model():
+    """The CPU's model name (Linux), or None."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            return next(ln.split(":", 1)[1].strip() for ln in f if "model name" in ln)
+    except (OSError, StopIteration):
+        return None
+
+
 def _table(res):
     s, m, t1 = res["sorojax"], res["mujoco"], res["t1"]
+    n_s, n_m = s["steps"], m["steps"]
     rows = [
-        ("sorojax (Tsit5, adaptive)", f"{s['steps']}", f"{s['warm_median_s']:.2f}",
-         f"{s['warm_median_s'] / t1:.2f}", f"{s['compile_s']:.1f}", s["physics"]),
-        (f"MuJoCo rollout (dt {m['timestep']:g})", f"{m['steps']}",
-         f"{m['rollout_median_s']:.3f}", f"{m['rollout_median_s'] / t1:.3f}", "-",
-         m["physics"]),
-        (f"MuJoCo mj_step loop (dt {m['timestep']:g})", f"{m['steps']}",
-         f"{m['loop_median_s']:.3f}", f"{m['loop_median_s'] / t1:.3f}", "-",
-         m["physics"]),
+        ("sorojax (Tsit5, adaptive)", n_s, s["warm_median_s"], s["compile_s"],
+         s["physics"]),
+        (f"MuJoCo rollout (dt {m['timestep']:g} s)", n_m, m["rollout_median_s"],
+         None, m["physics"]),
+        (f"MuJoCo mj_step loop (dt {m['timestep']:g} s)", n_m, m["loop_median_s"],
+         None, m["physics"]),
     ]  # fmt: skip
-    print(f"\n{'':38s} {'steps':>7s} {'warm [s]':>9s} {'per sim s':>9s} "
-          f"{'compile':>8s} {'lift mm':>8s} {'slip mm':>8s}")  # fmt: skip
-    for name, n, w, ps, c, ph in rows:
-        print(f"{name:38s} {n:>7s} {w:>9s} {ps:>9s} {c:>8s} "
+    print(f"\n{'':34s} {'steps':>6s} {'warm s':>7s} {'per sim s':>9s} "
+          f"{'ms/step':>8s} {'compile s':>9s} {'lift mm':>8s} {'slip mm':>8s}")  # fmt: skip
+    for name, n, w, c, ph in rows:
+        cs = "-" if c is None else f"{c:.1f}"
+        print(f"{name:34s} {n:6d} {w:7.3f} {w / t1:9.3f} {1e3 * w / n:8.3f} {cs:>9s} "
               f"{ph['lift_mm']:8.2f} {ph['slip_mm']:8.2f}")  # fmt: skip
     print(
         f"sorojax warm / MuJoCo: {res['ratio_sorojax_warm_over_mujoco_rollout']:.0f}x"
