@@ -97,6 +97,24 @@ def grasp(lk, tension, t1, n_save=61):
     return tr, ball, np.asarray(tr.q[:, 0])
 
 
+def slip(lk, tension, t1, adjoint=None, throw=True):
+    """How far the ball fell behind the palm between the lift's start and ``t1`` [m].
+
+    A JAX scalar, differentiable in ``tension`` (give ``adjoint``, e.g.
+    ``diffrax.ForwardMode()``, for ``jax.jvp``): the palm's rise minus the ball's,
+    from t = 0.4 s (the lift begins) to ``t1``, the ball's height taken at its
+    centre of mass by ``sj.forward_kinematics``; ``throw=False`` under ``vmap``
+    (a failed rollout gives NaN or a truncated trajectory instead of an error).
+    """
+    u = eqx.Partial(inputs, tension=jnp.asarray(tension))
+    tr = sj.simulate(lk, t1, u=u, solver="tsit5", ts=jnp.array([0.4, t1]),
+                     rtol=1e-4, atol=1e-7, max_steps=200_000,
+                     adjoint=adjoint, throw=throw)  # fmt: skip
+    cm = lk.layout.links[3].cm_point
+    ball = jax.vmap(lambda q: sj.forward_kinematics(lk, q)[cm, 2, 3])(tr.q)
+    return (tr.q[-1, 0] - tr.q[0, 0]) - (ball[-1] - ball[0])
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--out", default=".")
