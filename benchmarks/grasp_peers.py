@@ -395,6 +395,8 @@ def main(argv=None):
     ap.add_argument("--dts", type=float, nargs="+",
                     default=[4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4, 1e-4])  # fmt: skip
     a = ap.parse_args(argv)
+    # MuJoCo's warnings (the sweep's diverging steps) printed, not logged to a file
+    mujoco.set_mju_user_warning(lambda msg: print(f"MuJoCo: {msg}"))
     env = environment(mujoco_version=mujoco.__version__, cpu_model=_cpu_model())
     p = scene()
     mj, m, U = mujoco_part(p, a.tension, a.t1, a.segments, a.dts, a.impratio)
