@@ -6,8 +6,10 @@ Five measurements, all in this process (persistent compilation cache off):
    right-hand side every solver step evaluates once per stage) of a rod resting on a
    floor with about 10, 100 and 1000 contact samples, against the same rod without
    contact (the rod's own points: 12). Compile time of each program.
-2. ``compile``: first call of ``simulate`` (0.2 s, ROS34PW2) of the dropped rod with
-   and without its floor: the contact terms' share of the compile.
+2. ``compile``: first call of ``simulate`` (0.2 s, ROS34PW2 and Tsit5) of the
+   dropped rod with and without its floor, and the XLA compile time of each
+   program (JAX's compile log): the integration program, and the contact report
+   (``Trajectory.contact``), a second program compiled in a thread beside it.
 3. ``w_tangent``: ROS34PW2 with W = (M, K, D) against W with the contacts' stiffness
    and damping (``Contact.tangent_in_w``), and Tsit5, on a block held by friction on
    a 15-degree plane and on a rod dropped onto a floor: steps and warm time.
@@ -30,13 +32,15 @@ Five measurements, all in this process (persistent compilation cache off):
 
 Run::
 
-    .venv/bin/python benchmarks/contact.py [--repeats 5]
+    .venv/bin/python benchmarks/contact.py [--repeats 5] [--part laws ...]
 
 Writes ``benchmarks/results/contact.json`` and ``benchmarks/results/contact.png``.
 """
 
 import argparse
 import json
+import logging
+import re
 import sys
 import time
 
@@ -114,16 +118,51 @@ def dropped(contact: bool, tangent: bool = True, stiffness=1e4):
     return sj.Linkage(lk.links, placements=place[None], gravity=(0, 0, -G), contact=c)
 
 
+class _CompileLog(logging.Handler):
+    """Collects JAX's "Finished XLA compilation of jit(NAME) in T sec" records."""
+
+    pattern = re.compile(r"Finished XLA compilation of jit\((\w+)\) in ([0-9.e-]+) sec")
+
+    def __init__(self):
+        super().__init__(logging.DEBUG)
+        self.seconds: dict[str, float] = {}
+
+    def emit(self, record):
+        m = self.pattern.search(record.getMessage())
+        if m:
+            self.seconds[m[1]] = self.seconds.get(m[1], 0.0) + float(m[2])
+
+
 def compile_share():
+    """First ``simulate`` call without and with the floor, for ROS34PW2 and Tsit5,
+    and the XLA compile seconds of its programs: the integration (``_simulate``)
+    and the contact report (``trajectory_contacts``, compiled in a thread beside
+    the integration's)."""
     out = {}
-    for contact in (False, True):
-        lk = dropped(contact)
-        q0 = jnp.zeros(lk.n_dof).at[0].set(0.1)
-        t0 = time.perf_counter()
-        sj.simulate(lk, 0.2, q0, solver="ros34pw2", n_save=3)
-        out["with_contact" if contact else "without_contact"] = time.perf_counter() - t0
-    print(f"compile: first simulate {out['without_contact']:.1f} s without contact, "
-          f"{out['with_contact']:.1f} s with")  # fmt: skip
+    jax.config.update("jax_log_compiles", True)
+    logger = logging.getLogger("jax")
+    for solver in ("ros34pw2", "tsit5"):
+        for contact in (False, True):
+            lk = dropped(contact)
+            q0 = jnp.zeros(lk.n_dof).at[0].set(0.1)
+            log = _CompileLog()
+            logger.addHandler(log)
+            t0 = time.perf_counter()
+            sj.simulate(lk, 0.2, q0, solver=solver, n_save=3)
+            first = time.perf_counter() - t0
+            logger.removeHandler(log)
+            key = solver + ("_with_contact" if contact else "_without_contact")
+            out[key] = dict(
+                first_call_s=first,
+                integration_compile_s=log.seconds.get("_simulate", float("nan")),
+                report_compile_s=log.seconds.get("trajectory_contacts", 0.0),
+            )
+        a, b = out[solver + "_without_contact"], out[solver + "_with_contact"]
+        print(f"compile {solver}: first simulate {a['first_call_s']:.1f} s without "
+              f"contact, {b['first_call_s']:.1f} s with; integration program "
+              f"{a['integration_compile_s']:.1f} -> {b['integration_compile_s']:.1f} s, "
+              f"contact report {b['report_compile_s']:.1f} s")  # fmt: skip
+    jax.config.update("jax_log_compiles", False)
     return out
 
 
@@ -275,6 +314,8 @@ LAWS = {
     # k g_hat near the load per length
     "penalty": (dict(stiffness=1e6, smoothing=1e-7),
                 dict(stiffness=1e4, smoothing=1e-4, damping=10.0)),
+    "penalty_stiff": (dict(stiffness=1e7, smoothing=1e-7),
+                      dict(stiffness=1e6, smoothing=1e-5, damping=10.0)),
     "barrier": (dict(stiffness=1e4, smoothing=1e-4, kind="barrier"),
                 dict(stiffness=3e4, smoothing=1e-4, damping=10.0, kind="barrier")),
     "barrier_tight": (dict(stiffness=1e5, smoothing=1e-5, kind="barrier"),
@@ -321,7 +362,7 @@ def chart(res, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(1, 4, figsize=(17, 3.8))
+    fig, ax = plt.subplots(1, 5, figsize=(21, 3.8))
     c = res["cost"]
     ax[0].plot([r["samples"] for r in c[1:]], [r["warm_median_s"] * 1e6 for r in c[1:]],
                "o-", label="with contact")  # fmt: skip
@@ -360,23 +401,48 @@ def chart(res, path):
     ax[2].set(xscale="log", yscale="log", xlabel="contact stiffness [N/m^2]",
               title="heavy cantilever on a floor vs elastica")  # fmt: skip
     ax[2].legend()
+    lw = res.get("laws", [])
+    for j, solver in enumerate(("tsit5", "ros34pw2")):
+        x = np.arange(len(lw)) + (j - 0.5) * 0.38
+        ax[4].bar(x, [r["dynamics"][solver]["steps"] for r in lw], 0.38,
+                  label=solver)  # fmt: skip
+    for i, r in enumerate(lw):
+        ax[4].annotate(f"{r['dynamics']['tsit5']['deepest_penetration']:.0e} m",
+                       (i, r["dynamics"]["tsit5"]["steps"]), ha="center",
+                       va="bottom", fontsize=7)  # fmt: skip
+    ax[4].set_xticks(np.arange(len(lw)), [r["law"] for r in lw], fontsize=8)
+    ax[4].set(yscale="log", ylabel="steps for 1 s",
+              title="rod dropped: law (deepest penetration)")  # fmt: skip
+    ax[4].legend()
     fig.tight_layout()
     fig.savefig(path, dpi=110)
+
+
+PARTS = {
+    "cost": lambda a: cost(a.repeats),
+    "compile": lambda a: compile_share(),
+    "w_tangent": lambda a: w_tangent(a.repeats),
+    "stiffness": lambda a: stiffness(a.repeats),
+    "fixed_steps": lambda a: fixed_steps(),
+    "touchdown": lambda a: touchdown(),
+    "laws": lambda a: laws(a.repeats),
+}
 
 
 def main():
     p = argparse.ArgumentParser()
     p.add_argument("--repeats", type=int, default=5)
+    p.add_argument("--part", choices=tuple(PARTS), action="append",
+                   help="run only these parts (repeatable): the others keep their "
+                        "saved results")  # fmt: skip
     a = p.parse_args()
-    res = dict(environment=environment())
-    res["cost"] = cost(a.repeats)
-    res["compile"] = compile_share()
-    res["w_tangent"] = w_tangent(a.repeats)
-    res["stiffness"] = stiffness(a.repeats)
-    res["fixed_steps"] = fixed_steps()
-    res["touchdown"] = touchdown()
-    res["laws"] = laws(a.repeats)
     out = ROOT / "benchmarks" / "results" / "contact.json"
+    res = json.loads(out.read_text()) if a.part and out.exists() else {}
+    env = environment()
+    for name in a.part or PARTS:
+        res[name] = PARTS[name](a)
+        res.setdefault("environments", {})[name] = env
+    res["environment"] = env
     out.write_text(json.dumps(res, indent=1))
     chart(res, ROOT / "benchmarks" / "results" / "contact.png")
     print("wrote", out)

@@ -14,10 +14,12 @@ repeated calls after a warm-up, each ended with ``jax.block_until_ready``):
    |tip - tip_ref| / L) against Dopri8 at rtol 1e-12 with the same basis order, versus
    warm wall time, for each solver x rtol x Legendre order; plus the basis-order
    (discretisation) error, reference at order k against order 6.
-2. ``stability``: the soft free-fall rod and a stiff steel rod, each solver with constant
-   steps h = 1e-2 .. 1e-5 and adaptive rtol 1e-3 / 1e-6: diverged / max steps / failed /
-   ok, and wall time; the highest natural frequency from K v = w^2 M(q0) v and the
-   explicit step limits it implies.
+2. ``stability``: the soft free-fall rod (undamped and damped), a stiff steel rod, and
+   the soft rod falling onto a stiff floor (penalty contact, 1e7 N/m^2), each solver
+   with constant steps h = 1e-2 .. 1e-5 and adaptive rtol 1e-3 / 1e-6: diverged / max
+   steps / failed (a contact deeper than the rod's radius is failed) / ok, and wall
+   time; the highest natural frequency from K v = w^2 M(q0) v (with the floor: the
+   contact's sqrt(k / (rho A)) at the tip) and the explicit step limits it implies.
 3. ``speed``: 5 s of the damped free-fall rod (12 DoF): compile and warm time of the
    default solver and of the two fastest solvers at an error of ~1e-4 (from part 1),
    against SoRoSim's 1.5 s (MATLAB, ode15s) and a 0.15 s target.
@@ -625,6 +627,39 @@ def stiff_rod():
     return sj.Linkage([rod], gravity=(0.0, 0.0, -9.81))
 
 
+FLOOR_STIFFNESS = 1e7  # contact stiffness of the rod on a floor [N/m^2]
+FLOOR_DEPTH = 0.03  # the floor below the clamp [m]
+FLOOR_START = (0.1, 0.0, 0.3)  # its initial strain: level, bent sideways, twisted
+
+
+def rod_on_floor():
+    """The soft free-fall rod falling onto a stiff floor 3 cm below its clamp.
+
+    It starts level (:data:`FLOOR_START`: bent sideways and twisted, every mode
+    excited) with its surface clear of the floor, sags and strikes it.
+
+    Penalty contact ``k = 1e7 N/m^2`` (smoothing 1e-6 m, no damping): the contact's
+    own frequency ``sqrt(k / (rho A))`` (5.6e3 to 1.1e4 rad/s along the tapered rod)
+    is above the rod's fastest elastic mode, so an explicit solver's step is bounded
+    by the contact.
+    """
+    rod = free_fall_rod(order=3)
+    law = sj.ContactLaw(stiffness=FLOOR_STIFFNESS, smoothing=1e-6)
+    floor = sj.Plane(point=(0.0, 0.0, -FLOOR_DEPTH))
+    return sj.Linkage(rod.links, gravity=(0.0, 0.0, -9.81),
+                      contact=sj.Contact(floor, law, spacing=0.01))  # fmt: skip
+
+
+def floor_frequency() -> float:
+    """The contact's highest frequency ``sqrt(k / (rho A))`` at the rod's thin tip."""
+    return math.sqrt(FLOOR_STIFFNESS / (1000.0 * math.pi * 0.01**2))
+
+
+def start_strain(rod):
+    """The stability runs' initial strain: :data:`FLOOR_START` over the floor."""
+    return STAB_STRAIN if rod.contact is None else FLOOR_START
+
+
 def classify(tr, rod, length):
     name = result_name(tr.result)
     if name == "nonlinear_divergence":
@@ -642,7 +677,30 @@ def classify(tr, rod, length):
         or np.linalg.norm(tips, axis=-1).max() > 2 * length
     ):
         return "diverged", name
+    if rod.contact is not None and energy_gain(tr, rod) > ENERGY_GAIN:
+        return "energy gain", name
     return "ok", name
+
+
+ENERGY_GAIN = 0.1
+"""A run over the floor (no damping) is ``energy gain`` when its total energy (the
+contact's potential included) rises above the start by more than this share of its
+largest kinetic energy: the integration, not the physics, put the energy in."""
+
+
+@eqx.filter_jit
+def _energies(rod, q, qd):
+    def one(q_, qd_):
+        kinetic = 0.5 * qd_ @ sj.mass_matrix(rod, q_) @ qd_
+        return sj.total_energy(rod, q_, qd_), kinetic
+
+    return jax.vmap(one)(q, qd)
+
+
+def energy_gain(tr, rod) -> float:
+    """Largest rise of the total energy over the start, per largest kinetic energy."""
+    e, k = (np.asarray(a) for a in _energies(rod, tr.q, tr.qd))
+    return float(np.max(e - e[0]) / max(np.max(k), 1e-300))
 
 
 STEPS = (1e-2, 1e-3, 1e-4, 1e-5)
@@ -657,11 +715,15 @@ def bench_stability(quick):
         "soft": (free_fall_rod(order=3), L_SOFT, 0.2),
         "soft_damped": (free_fall_rod(order=3, eta=ETA_DAMPED), L_SOFT, 0.2),
         "stiff": (stiff_rod(), 0.2, 0.02),
+        "soft_on_floor": (rod_on_floor(), L_SOFT, 0.2),
     }
     theory = {}
     for name, (rod, _, _) in rods.items():
-        q0 = initial_q(rod, STAB_STRAIN)
+        q0 = initial_q(rod, start_strain(rod))
         w, lam = modal_analysis(rod, q0)
+        if rod.contact is not None:  # the floor's stiffness: an undamped frequency
+            wc = floor_frequency()
+            w, lam = np.append(w, wc), np.append(lam, [1j * wc, -1j * wc])
         limits = {s: explicit_step_limit(s, lam) for s in EXPLICIT}
         theory[name] = {
             "w_min_rad_s": float(w.min()),
@@ -697,7 +759,7 @@ def bench_stability(quick):
     for solver in SOLVERS:
         # Compile both controllers once (the two rods share the programs).
         rod, length, T = rods["soft"]
-        q0 = initial_q(rod, STAB_STRAIN)
+        q0 = initial_q(rod, start_strain(rod))
         TRACKER.warm(
             (solver, 3, "const", max_fixed),
             partial(run_fixed, rod, 2e-3, q0, solver, 1e-3, max_fixed),
@@ -707,7 +769,7 @@ def bench_stability(quick):
             partial(run_adaptive, rod, 1e-3, q0, solver, 1e-3, STAB_MAX_STEPS),
         )
         for rname, (rod, length, T) in rods.items():
-            q0 = initial_q(rod, STAB_STRAIN)
+            q0 = initial_q(rod, start_strain(rod))
             cells = [("h", h) for h in STEPS] + [("rtol", r) for r in ADAPT_RTOLS]
             for kind, val in cells:
                 if kind == "h":
@@ -748,6 +810,7 @@ def bench_stability(quick):
                 "soft": "free_fall_rod(order=3): L 0.5 m, r 2->1 cm, E 1 MPa, rho 1000, eta 0",
                 "soft_damped": f"the soft rod with eta {ETA_DAMPED:g} Pa s (its fastest modes are damped)",
                 "stiff": "steel: L 0.2 m, r 1 mm, E 200 GPa, nu 0.3, rho 7800, eta 0, order 3",
+                "soft_on_floor": f"the soft rod over a floor {FLOOR_DEPTH} m below its clamp, penalty k {FLOOR_STIFFNESS:g} N/m^2, smoothing 1e-6 m, no damping",
             },
             "q0": "uniform strain: torsion 0.1, bending 1 (about y) and 0.3 (about z) rad/m, at rest; gravity -z (3D: excites every mode)",
             "spans_s": {k: v[2] for k, v in rods.items()},
@@ -769,6 +832,7 @@ OUTCOME_COLOUR = {
     "diverged": "#e53935",
     "max steps": "#fb8c00",
     "failed": "#8e24aa",
+    "energy gain": "#fdd835",
     "not run": "#bdbdbd",
 }
 
@@ -782,8 +846,18 @@ def plot_stability(res, path):
 
     rows = res["rows"]
     cols = [f"h={h:.0e}" for h in STEPS] + [f"rtol={r:.0e}" for r in ADAPT_RTOLS]
-    names = [n for n in ("soft", "soft_damped", "stiff") if n in res["theory"]]
-    fig, axes = plt.subplots(1, len(names), figsize=(7 * len(names), 4.8))
+    names = [
+        n
+        for n in ("soft", "soft_damped", "stiff", "soft_on_floor")
+        if n in res["theory"]
+    ]
+    ncol = min(len(names), 2)
+    nrow = -(-len(names) // ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(7 * ncol, 4.3 * nrow))
+    axes = np.atleast_1d(axes).ravel()
+    for ax in axes[len(names) :]:
+        ax.set_visible(False)
+    axes = axes[: len(names)]
     for ax, rname in zip(axes, names, strict=True):
         for i, solver in enumerate(SOLVERS):
             for j, c in enumerate(cols):
@@ -827,7 +901,7 @@ def plot_stability(res, path):
     fig.legend(
         handles=[Patch(color=v, label=k) for k, v in OUTCOME_COLOUR.items()],
         loc="lower center",
-        ncol=5,
+        ncol=6,
     )
     fig.tight_layout(rect=(0, 0.07, 1, 1))
     fig.savefig(path, dpi=120)
