@@ -107,6 +107,7 @@ _LAZY = {
     "RecompilationWarning": "._recompile",
     "CriticalPoint": ".statics",
     "EquilibriumPath": ".statics",
+    "InsensitiveQuantityWarning": ".statics",
     "ModelChoice": ".statics",
     "UnstableEquilibriumWarning": ".statics",
     "choose_model": ".statics",
@@ -114,6 +115,7 @@ _LAZY = {
     "continuation": ".statics",
     "discretization_error": ".statics",
     "solve_statics": ".statics",
+    "solve_statics_adequate": ".statics",
     "with_orders": ".statics",
 }
 _SUBMODULES = frozenset(
@@ -238,6 +240,7 @@ if TYPE_CHECKING:  # static analysers see the names as plain imports
     from .model._precompute import precompute as precompute
     from .statics import CriticalPoint as CriticalPoint
     from .statics import EquilibriumPath as EquilibriumPath
+    from .statics import InsensitiveQuantityWarning as InsensitiveQuantityWarning
     from .statics import ModelChoice as ModelChoice
     from .statics import UnstableEquilibriumWarning as UnstableEquilibriumWarning
     from .statics import choose_model as choose_model
@@ -245,4 +248,5 @@ if TYPE_CHECKING:  # static analysers see the names as plain imports
     from .statics import continuation as continuation
     from .statics import discretization_error as discretization_error
     from .statics import solve_statics as solve_statics
+    from .statics import solve_statics_adequate as solve_statics_adequate
     from .statics import with_orders as with_orders

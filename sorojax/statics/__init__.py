@@ -4,6 +4,9 @@ from ._adequacy import (
     DiscretizationEstimate as DiscretizationEstimate,
 )
 from ._adequacy import (
+    InsensitiveQuantityWarning as InsensitiveQuantityWarning,
+)
+from ._adequacy import (
     ModelChoice as ModelChoice,
 )
 from ._adequacy import (
@@ -14,6 +17,9 @@ from ._adequacy import (
 )
 from ._adequacy import (
     discretization_error as discretization_error,
+)
+from ._adequacy import (
+    solve_statics_adequate as solve_statics_adequate,
 )
 from ._adequacy import (
     with_orders as with_orders,

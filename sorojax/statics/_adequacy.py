@@ -28,7 +28,9 @@ monomial and custom bases are not nested orthogonal families).
 
 import dataclasses
 import time
+import warnings
 from collections.abc import Callable
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -38,9 +40,11 @@ from jaxtyping import ArrayLike
 from .._jit import jit
 from ..dynamics._eom import as_inputs
 from ..kinematics._api import forward_kinematics
+from ..model._actuation import JointActuator
 from ..model._basis import MODE_NAMES, LegendreBasis
 from ..model._link import Division, SoftLink
 from ..model._linkage import Linkage
+from ..model._loads import PointWrench
 from ..model._precompute import precompute
 from ..model._size_class import replace_divisions
 from ._solve import _row_scale, free_coordinates, scaled_equilibrium, solve_statics
@@ -53,6 +57,14 @@ OFF = -1
 RCOND = 1e-10
 # The final trim's target as a fraction of the tolerance.
 TRIM = 0.95
+# choose_model's reference: order 12, raised by 4 up to 24 while its own estimated
+# error exceeds this share of the tolerance (a clamped-clamped rod buckled to 0.8 L
+# is off by 2.5e-6 L at order 12, 1.4e-7 L at 16).
+REFERENCE_ORDER, MAX_REFERENCE_ORDER, REFERENCE_SHARE = 12, 24, 0.2
+
+
+class InsensitiveQuantityWarning(UserWarning):
+    """A quantity of interest that cannot tell the candidate models apart."""
 
 
 # ------------------------------------------------------------------ model surgery
@@ -172,10 +184,100 @@ def transfer_coordinates(source: Linkage, q: ArrayLike, target: Linkage) -> np.n
 
 
 # ---------------------------------------------------------- quantity of interest
+# Probe intervals per soft division of the default QoI: 17 evenly spaced points
+# (ends included) see the shape of every order the choice uses (its reference is at
+# most order 24: a Legendre error's largest value lies within a few % of a probe).
+PROBES = 16
+# Built-in quantities: the whole configuration, or every link's tip pose alone.
+QUANTITIES = ("configuration", "tips")
+# A quantity that changes less than this fraction of the configuration's change
+# between the reference and its truncations cannot tell models apart.
+INSENSITIVE = 1e-3
+
+
 def reference_length(linkage: Linkage) -> float:
     """The QoI's length scale: the longest soft link (or rigid link) [m]."""
     lengths = [float(lk.length) for lk in linkage.links]
     return max(lengths)
+
+
+def bending_stiffness(linkage: Linkage) -> float | None:
+    """Length-weighted mean bending stiffness ``E (Iy + Iz) / 2`` [N m^2].
+
+    Evaluated at every soft division's middle; None without soft divisions.
+    """
+    num = den = 0.0
+    for i, _, div in _soft_divisions(linkage):
+        _, Iy, Iz, _ = div.section.properties(0.5)
+        E = float(linkage.links[i - 1].material.E)
+        num += float(div.length) * E * (float(Iy) + float(Iz)) / 2.0
+        den += float(div.length)
+    return num / den if den > 0 else None
+
+
+def reaction_scales(linkage: Linkage, length: float) -> tuple[np.ndarray, np.ndarray]:
+    """Lengths per unit closed-loop multiplier and per unit prescribed effort.
+
+    Units m / (N m) or m / N by the row's direction.
+    A reaction error is expressed as the deflection it would give a cantilever of
+    the reference length ``l`` and the scene's :func:`bending_stiffness` ``EI``:
+    ``l^2 / EI`` per N m of moment and ``l^3 / EI`` per N of force (an angle
+    ``M l / EI`` times ``l``; a deflection ``F l^3 / EI``). A row whose direction
+    mixes both (a helical joint's) adds them by its angular and linear norms.
+
+    Returns:
+        ``(per multiplier row (n_constraints,), per prescribed coordinate (n,))``;
+        zeros without soft divisions.
+    """
+    EI = bending_stiffness(linkage)
+    n_p = len(linkage.prescribed[0])
+    if EI is None:
+        return np.zeros(linkage.n_constraints), np.zeros(n_p)
+
+    def scale(columns):
+        columns = np.asarray(columns, dtype=float).reshape(6, -1)
+        ang = np.linalg.norm(columns[:3], axis=0)
+        lin = np.linalg.norm(columns[3:], axis=0)
+        return ang * length**2 / EI + lin * length**3 / EI
+
+    loops = [scale(c.constrained_basis()) for c in linkage.closed_loops]
+    s_lam = np.concatenate(loops) if loops else np.zeros(0)
+    efforts = []
+    for a in linkage.actuators:
+        if isinstance(a, JointActuator) and a.prescribed:
+            efforts.append(scale(linkage.links[a.link - 1].joint.basis()))
+    s_eff = np.concatenate(efforts) if efforts else np.zeros(0)
+    return s_lam, s_eff
+
+
+def _sampler(linkage: Linkage) -> tuple[Linkage, np.ndarray]:
+    """``linkage`` with probe points and the indices of probes and tips.
+
+    The probes are zero point wrenches at ``X1 = j / PROBES`` of every soft division
+    (exact significant points of the kinematics; no coordinates, no load).
+    """
+    probes = [
+        PointWrench(i, jnp.zeros(6), division=k + 1, X1=j / PROBES)
+        for i, k, _ in _soft_divisions(linkage)
+        for j in range(PROBES + 1)
+    ]
+    sampler = Linkage(
+        list(linkage.links),
+        parents=linkage.parents,
+        placements=linkage.placements,
+        gravity=linkage.gravity,
+        point_wrenches=tuple(linkage.point_wrenches) + tuple(probes),
+        custom_wrench=linkage.custom_wrench,
+        actuators=linkage.actuators,
+        closed_loops=linkage.closed_loops,
+        custom_actuation=linkage.custom_actuation,
+        actuator_strength=linkage.actuator_strength,
+        baumgarte_time=linkage.baumgarte_time,
+        contact=linkage.contact,
+    )
+    idx = [sampler.point_index(p) for p in probes]
+    idx += [sampler.tip_point(i + 1) for i in range(linkage.n_links)]
+    return sampler, np.asarray(idx)
 
 
 @jit
@@ -183,6 +285,12 @@ def _tip_poses(linkage: Linkage, qs):
     """World poses of every link's tip, for a batch of q: ``(batch, n_links, 4, 4)``."""
     tips = np.asarray([linkage.tip_point(i + 1) for i in range(linkage.n_links)])
     return jax.vmap(lambda q: forward_kinematics(linkage, q)[tips])(qs)
+
+
+@jit
+def _poses_at(linkage: Linkage, qs, idx):
+    """World poses at points ``idx`` for a batch of q: ``(batch, len(idx), 4, 4)``."""
+    return jax.vmap(lambda q: forward_kinematics(linkage, q)[idx])(qs)
 
 
 def pose_distance(g_a, g_b, length: float) -> np.ndarray:
@@ -207,68 +315,153 @@ def pose_distance(g_a, g_b, length: float) -> np.ndarray:
     return np.maximum(dp, length * angle) / length
 
 
-def _qoi_error(linkage, qs, q_ref, length, quantity):
-    """QoI distance of each of ``qs`` from ``q_ref`` (relative to ``length``)."""
-    qs = jnp.asarray(np.atleast_2d(qs))
+def _quantity_name(quantity) -> str:
     if quantity is None:
-        g = np.asarray(_tip_poses(linkage, jnp.concatenate([qs, q_ref[None]])))
-        d = pose_distance(g[:-1], g[-1][None], length)
-        return d.max(axis=-1)
-    vals = np.asarray([np.asarray(quantity(linkage, q)) for q in qs])
-    ref = np.asarray(quantity(linkage, q_ref))
-    return np.max(np.abs(vals - ref).reshape(len(vals), -1), axis=1) / length
+        return "configuration"
+    if isinstance(quantity, str):
+        return quantity
+    return getattr(quantity, "__name__", repr(quantity))
+
+
+class _Qoi:
+    """The quantity of interest of one model, evaluated on batches of states.
+
+    A state is ``(q, lam, eff)``: coordinates, closed-loop multipliers and efforts
+    of prescribed coordinates (None: no reactions, e.g. a trajectory's states).
+
+    - ``"configuration"`` (default): world poses at :data:`PROBES` + 1 points of
+      every soft division and at every link's tip, and the reactions times
+      :func:`reaction_scales`;
+    - ``"tips"``: every link's tip pose;
+    - a callable ``(linkage, q) -> array`` [m].
+    """
+
+    def __init__(self, linkage: Linkage, quantity, length: float):
+        self.linkage, self.length, self.quantity = linkage, float(length), quantity
+        self.name = _quantity_name(quantity)
+        if callable(quantity):
+            return
+        if self.name not in QUANTITIES:
+            raise ValueError(
+                f"quantity = {quantity!r}: give one of {QUANTITIES}, None (the "
+                "configuration) or a function (linkage, q) -> array [m]."
+            )
+        if self.name == "configuration":
+            self.sampler, self.idx = _sampler(linkage)
+            self.s_lam, self.s_eff = reaction_scales(linkage, length)
+        else:
+            self.sampler = linkage
+            self.idx = np.asarray(
+                [linkage.tip_point(i + 1) for i in range(linkage.n_links)]
+            )
+            self.s_lam = np.zeros(0)
+            self.s_eff = np.zeros(0)
+
+    def poses(self, qs) -> np.ndarray:
+        """``(batch, n_points, 4, 4)`` poses of a batch ``qs``."""
+        qs = jnp.atleast_2d(jnp.asarray(qs))
+        return np.asarray(_poses_at(self.sampler, qs, jnp.asarray(self.idx)))
+
+    def reactions(self, lam, eff, batch: int) -> np.ndarray:
+        """``(batch, n)`` scaled reactions [m] (``n = 0`` when not part of it)."""
+        parts = []
+        if len(self.s_lam) and lam is not None:
+            parts.append(np.atleast_2d(np.asarray(lam)) * self.s_lam)
+        if len(self.s_eff) and eff is not None:
+            parts.append(np.atleast_2d(np.asarray(eff)) * self.s_eff)
+        if not parts:
+            return np.zeros((batch, 0))
+        return np.concatenate(parts, axis=1)
+
+    def user(self, qs) -> np.ndarray:
+        """The user's quantity of each of a batch ``qs``, flattened."""
+        qs = np.atleast_2d(np.asarray(qs))
+        return np.asarray(
+            [np.ravel(self.quantity(self.linkage, jnp.asarray(q))) for q in qs]
+        )
+
+    def errors(self, qs, lams, effs, q0, lam0, eff0) -> np.ndarray:
+        """Distances (relative to the length) of a batch of states from one state."""
+        return self.against(self, qs, lams, effs, q0, lam0, eff0)
+
+    def against(self, other, qs, lams, effs, q0, lam0, eff0) -> np.ndarray:
+        """Distances of a batch of states of this model from one state of ``other``.
+
+        Both models have the same links and divisions (other orders or points):
+        their probes lie at the same arc lengths.
+        """
+        qs = np.atleast_2d(np.asarray(qs))
+        if callable(self.quantity):
+            a, b = self.user(qs), other.user(q0)
+            return np.max(np.abs(a - b), axis=1) / self.length
+        d = pose_distance(self.poses(qs), other.poses(q0), self.length).max(axis=-1)
+        r_a = self.reactions(lams, effs, len(qs))
+        r_b = other.reactions(lam0, eff0, 1)
+        if r_a.shape[1] and r_a.shape[1] == r_b.shape[1]:
+            d = np.maximum(d, np.abs(r_a - r_b).max(axis=1) / self.length)
+        return d
+
+    def kinematics(self, other, qs, q0s) -> float:
+        """Largest pose distance between equally long batches of this and ``other``."""
+        g_a = self.poses(qs)
+        g_b = other.poses(q0s)
+        return float(pose_distance(g_a, g_b, self.length).max())
 
 
 @jit
 def _tangent(linkage: Linkage, x, u, q_p, t):
-    """Jacobian of the statics rows (scaled) at ``x`` and the row scale."""
+    """Statics Jacobian (scaled rows) at ``x``, row scale, efforts and their Jacobian.
+
+    The efforts are the unscaled rows of the prescribed coordinates.
+    """
     data = precompute(linkage)
     free = free_coordinates(linkage)
+    qi = linkage.prescribed[0]
 
     def rows(x_):
-        return scaled_equilibrium(linkage, data, x_, t, 1.0, u, q_p)[0]
+        f, r = scaled_equilibrium(linkage, data, x_, t, 1.0, u, q_p)
+        return f, r[qi]
 
-    return jax.jacfwd(rows)(x), _row_scale(data.K)[free]
+    J, Jp = jax.jacfwd(rows)(x)
+    return J, _row_scale(data.K)[free], Jp, rows(x)[1]
 
 
 def _reference_tangent(linkage, q, lam, u, t):
-    """``(J_u, free, n_c)``: the unscaled statics Jacobian at ``(q, lam)``."""
+    """``(J_u, free, (J_p, e_p))``: the unscaled statics Jacobian at ``(q, lam)``.
+
+    ``e_p`` are the prescribed coordinates' efforts there, ``J_p`` their Jacobian.
+    """
     free = free_coordinates(linkage)
     qi, ui = linkage.prescribed
     q = jnp.asarray(q)
     u_arr = as_inputs(linkage, None if u is None else jnp.asarray(u, float), q.dtype)
     x = jnp.concatenate([q[free], jnp.asarray(lam)])
-    J, scale = _tangent(
+    J, scale, Jp, ep = _tangent(
         linkage, x, u_arr, q[qi] if len(qi) else None, jnp.asarray(t, q.dtype)
     )
     J = np.asarray(J).copy()
     J[: len(free)] /= np.asarray(scale)[:, None]
-    return J, free, linkage.n_constraints
+    return J, free, (np.asarray(Jp), np.asarray(ep))
 
 
-def _kinematic_difference(lk_a, q_a, lk_b, q_b, length) -> float:
-    """Largest tip-pose distance (relative) between two models' configurations.
-
-    ``q_a``, ``q_b``: one configuration each, or equally long batches.
-    """
-    g_a = np.asarray(_tip_poses(lk_a, jnp.atleast_2d(jnp.asarray(q_a))))
-    g_b = np.asarray(_tip_poses(lk_b, jnp.atleast_2d(jnp.asarray(q_b))))
-    return float(pose_distance(g_a, g_b, length).max())
-
-
-def _with_enough_points(linkage, orders, reference, q_t, length, target, cap):
+def _with_enough_points(linkage, orders, ref_qoi, q_t, target, cap):
     """``linkage`` at ``orders``, points doubled until its kinematics of ``q_t``.
 
-    (reference coordinates, one or a batch) agree with the reference's within
+    (reference coordinates, one or a batch) agree with the reference's (on
+    ``ref_qoi``'s points: a user quantity's on the configuration's) within
     ``target``, or the points reach ``cap``.
     """
+    reference, length = ref_qoi.linkage, ref_qoi.length
+    kind = "tips" if ref_qoi.name == "tips" else "configuration"
+    if kind != ref_qoi.name:
+        ref_qoi = _Qoi(reference, kind, length)
     ng = None
     while True:
         chosen = with_orders(linkage, orders, ng)
         q_tc = np.asarray(
             [transfer_coordinates(reference, q, chosen) for q in np.atleast_2d(q_t)]
         )
-        e_pts = _kinematic_difference(chosen, q_tc, reference, q_t, length)
+        e_pts = _Qoi(chosen, kind, length).kinematics(ref_qoi, q_tc, q_t)
         if e_pts <= target or ng is not None and max(ng.values()) >= cap:
             return chosen
         ng = {(i, k): 2 * chosen.links[i - 1].divisions[k].n_gauss for i, k in orders}
@@ -321,14 +514,20 @@ def _multipliers(linkage, q, u, t, J_u, free):
     return np.linalg.lstsq(J_u[:n, n:], -r[:n], rcond=None)[0]
 
 
-def _galerkin(J_u, free, x_ref, q_ref, dropped):
-    """The q of the smaller model that drops coordinates ``dropped`` (indices in q).
+def _galerkin(tangent, q_ref, dropped):
+    """The state of the smaller model that drops coordinates ``dropped`` (q indices).
 
     Its Galerkin solution of the equilibrium linearised at ``x_ref = (q_free,
     lam)``: ``E^T J (E x_K - x_ref) = 0`` on the kept unknowns (exact up to second
     order in the error; plain truncation misses the coupling of modes: a hanging
-    rod's truncation error was 80x below its model's error).
+    rod's truncation error was 80x below its model's error). ``tangent = (J_u,
+    free, x_ref, (J_p, e_p))`` (:func:`_equilibrium_tangent`).
+
+    Returns:
+        ``(q, lam, eff)``: coordinates, multipliers and the prescribed
+        coordinates' efforts (linearised too).
     """
+    J_u, free, x_ref, (J_p, e_p) = tangent
     pos_in_x = {int(j): a for a, j in enumerate(free)}
     q = np.array(q_ref, dtype=float)
     keep = np.ones(len(x_ref), bool)
@@ -343,23 +542,27 @@ def _galerkin(J_u, free, x_ref, q_ref, dropped):
     r = J_u[keep] @ (x - x_ref)
     x[keep] -= np.linalg.lstsq(A / c, r, rcond=RCOND)[0] / c
     q[free] = x[: len(free)]
-    return q
+    eff = e_p + J_p @ (x - x_ref) if len(e_p) else e_p
+    return q, x[len(free) :], eff
 
 
 def _equilibrium_tangent(linkage, q, u, lam, t):
-    """The unscaled statics tangent at the equilibrium ``q``: ``(J_u, free, x)``.
+    """The unscaled statics tangent at the equilibrium ``q``.
 
-    ``x = (q_free, lam)``, with least-squares multipliers when ``lam`` is None.
+    Returns ``(J_u, free, x, (J_p, e_p))``: ``x = (q_free, lam)``, with
+    least-squares multipliers when ``lam`` is None; ``e_p`` the prescribed
+    coordinates' efforts and ``J_p`` their Jacobian in ``x``.
     """
     n_c = linkage.n_constraints
+    q = np.asarray(q, dtype=float)
     if n_c and lam is None:
         # the multiplier columns do not depend on lam (the q block does: the
         # constraint curvature), so a tangent at lam = 0 gives the least squares
         J_0, free, _ = _reference_tangent(linkage, q, np.zeros(n_c), u, t)
         lam = _multipliers(linkage, q, u, t, J_0, free)
     lam = np.zeros(0) if not n_c else np.asarray(lam, dtype=float)
-    J_u, free, _ = _reference_tangent(linkage, q, lam, u, t)
-    return J_u, free, np.concatenate([q[free], lam])
+    J_u, free, P = _reference_tangent(linkage, q, lam, u, t)
+    return J_u, free, np.concatenate([q[free], lam]), P
 
 
 def discretization_error(
@@ -369,7 +572,7 @@ def discretization_error(
     *,
     lam: ArrayLike | None = None,
     t: float = 0.0,
-    quantity: Callable | None = None,
+    quantity: str | Callable | None = None,
     length: float | None = None,
     equilibrium: bool = True,
 ) -> DiscretizationEstimate:
@@ -382,10 +585,8 @@ def discretization_error(
     points' integration error is estimated apart, by integrating the same q with
     twice the points (one more compile of the kinematics). An indicator, not a
     bound: on a planar cantilever with a tip force (orders 1-6 against an
-    order-14 reference) it was 0.25-5.8x the true error; on a soft rod hanging
-    under its own weight at orders 10-14 (all six modes) 0.5-1.5x (0.12-0.21x
-    when the smaller models were plain truncations of q, the estimate before
-    2026-11-24).
+    order-14 reference, tip poses) it was 0.25-5.8x the true error; on a soft rod
+    hanging under its own weight at orders 10-14 (all six modes) 0.5-1.5x.
 
     Args:
         linkage: the model (soft divisions with LegendreBasis).
@@ -394,11 +595,16 @@ def discretization_error(
         lam: its closed-loop multipliers (a :class:`StaticsSolution`'s ``lam``);
             default their least-squares values at ``q``.
         t: time for time-dependent loads [s].
-        quantity: ``(linkage, q) -> array`` QoI; default every link's tip pose.
+        quantity: the QoI. None or ``"configuration"`` (default): world poses at
+            ``PROBES + 1`` evenly spaced points of every soft division and at every
+            link's tip (positions, and rotation angles times ``length``), and the
+            closed-loop multipliers and prescribed coordinates' efforts as lengths
+            (:func:`reaction_scales`); ``"tips"``: every link's tip pose; or a
+            function ``(linkage, q) -> array`` [m].
         length: reference length [m]; default :func:`reference_length`.
         equilibrium: False when ``q`` is not an equilibrium (a state of a
             trajectory): the smaller models are then plain truncations of ``q``
-            (no tangent; an underestimate where modes couple).
+            (no tangent, no reactions; an underestimate where modes couple).
 
     Returns:
         A :class:`DiscretizationEstimate`.
@@ -406,37 +612,40 @@ def discretization_error(
     length = reference_length(linkage) if length is None else float(length)
     q = np.asarray(q, dtype=float)
     tangent = _equilibrium_tangent(linkage, q, u, lam, t) if equilibrium else None
-    return _estimate(linkage, q, tangent, quantity, length)
+    return _estimate(linkage, q, tangent, _Qoi(linkage, quantity, length))
 
 
-def _estimate(linkage, q, tangent, quantity, length) -> DiscretizationEstimate:
-    """The estimate of :func:`discretization_error`.
+def _estimate(linkage, q, tangent, qoi) -> DiscretizationEstimate:
+    """The estimate of :func:`discretization_error` on the quantity ``qoi``.
 
-    ``tangent = (J_u, free, x)`` at ``q``, or None for plain truncations.
+    ``tangent`` as :func:`_equilibrium_tangent` returns it at ``q``, or None for
+    plain truncations (then no reactions).
     """
     orders = division_orders(linkage)
     index = _coefficient_index(linkage)
 
-    def smaller(down):  # q of the model with orders lowered by {(i, k, m): steps}
+    def smaller(down):  # state of the model with orders lowered by {(i, k, m): steps}
         lowered = {
             (i, k): tuple(o[m] - down.get((i, k, m), 0) for m in range(6))
             for (i, k), o in orders.items()
         }
         dropped = _dropped(index, lowered)
         if tangent is not None:
-            return _galerkin(*tangent, q, dropped)
+            return _galerkin(tangent, q, dropped)
         out = q.copy()
         out[dropped] = 0.0
-        return out
+        return out, None, None
 
+    if tangent is None:
+        state = (q, None, None)
+    else:
+        state = (q, tangent[2][len(tangent[1]) :], tangent[3][1])
     active = [(i, k, m) for (i, k), o in orders.items() for m in range(6) if o[m] >= 0]
     keys = [(i, k, MODE_NAMES[m]) for i, k, m in active]
-    qs = [smaller({key: 1}) for key in active]
-    q_all = smaller(dict.fromkeys(active, 1))  # top coefficient dropped
-    q_two = smaller(dict.fromkeys(active, 2))  # top two dropped
-    errs = _qoi_error(
-        linkage, np.asarray(qs + [q_all, q_two]), jnp.asarray(q), length, quantity
-    )
+    states = [smaller({key: 1}) for key in active]
+    states.append(smaller(dict.fromkeys(active, 1)))  # top coefficient dropped
+    states.append(smaller(dict.fromkeys(active, 2)))  # top two dropped
+    errs = qoi.errors(*_stack(states), *state)
     # the model one order down is off by e1, two down by e2: under geometric decay
     # this one is off by about e1 * (e1 / e2)
     e1, e2 = float(errs[-2]), float(errs[-1])
@@ -446,18 +655,25 @@ def _estimate(linkage, q, tangent, quantity, length) -> DiscretizationEstimate:
         orders,
         {(i, k): 2 * linkage.links[i - 1].divisions[k].n_gauss for i, k in orders},
     )
-    if quantity is None:
-        points = _kinematic_difference(linkage, q, finer, q, length)
+    fine = _Qoi(finer, qoi.quantity, qoi.length)
+    if callable(qoi.quantity):
+        points = float(qoi.against(fine, q, None, None, q, None, None)[0])
     else:
-        a = np.asarray(quantity(linkage, jnp.asarray(q)))
-        b = np.asarray(quantity(finer, jnp.asarray(q)))
-        points = float(np.max(np.abs(a - b)) / length)
+        points = qoi.kinematics(fine, q, q)
     return DiscretizationEstimate(
         error=max(coefficients, points),
         coefficients=coefficients,
         points=points,
         per_mode={key: float(e) for key, e in zip(keys, errs[:-2], strict=True)},
     )
+
+
+def _stack(states):
+    """``(qs, lams, effs)`` of a list of ``(q, lam, eff)`` (None stays None)."""
+    qs = np.asarray([s[0] for s in states])
+    lams = None if states[0][1] is None else np.asarray([s[1] for s in states])
+    effs = None if states[0][2] is None else np.asarray([s[2] for s in states])
+    return qs, lams, effs
 
 
 # ------------------------------------------------------------------ choice
@@ -478,6 +694,9 @@ class ModelChoice:
         num_solves: statics solves used (reference and verifications).
         seconds: wall time of the whole choice (compiles included).
         history: ``[(n_dof, truncation estimate, verified error)]`` per round.
+        quantity: the name of the QoI the choice was made on.
+        solution: the chosen model's :class:`~sorojax.StaticsSolution` (statics;
+            None for a trajectory).
     """
 
     linkage: Linkage
@@ -491,6 +710,8 @@ class ModelChoice:
     num_solves: int
     seconds: float
     history: tuple
+    quantity: str = "configuration"
+    solution: Any = None
 
 
 def _dofs(orders) -> int:
@@ -605,7 +826,7 @@ def _dropped(index, orders) -> list[int]:
 def _choose(
     linkage,
     user,
-    reference,
+    ref_qoi,
     q_ref,
     truncated,
     errors,
@@ -617,27 +838,26 @@ def _choose(
     safety,
     max_rounds,
     cap,
-    length,
     start,
 ) -> ModelChoice:
     """The rounds shared by :func:`choose_model` and its dynamics twin.
 
     Greedy orders against the proxy ``errors`` down to the target, points until the
-    kinematics agree, then ``verify(chosen) -> (q, error, ok)`` (one solve or
-    simulation); above ``tol`` the target drops by the excess and a round follows.
+    kinematics agree, then ``verify(chosen) -> (q, error, ok, solution)`` (one solve
+    or simulation); above ``tol`` the target drops by the excess and a round
+    follows.
     """
+    reference = ref_qoi.linkage
     n_ref = max(o for v in division_orders(reference).values() for o in v)
     cur = {key: (OFF,) * 6 for key in user}
     err = float(errors([cur])[0])
     target = safety * tol
-    history, chosen, q_c, verified, runs = [], None, None, np.inf, 1
+    history, chosen, q_c, verified, runs, sol = [], None, None, np.inf, 1, None
     for _ in range(max_rounds):
         cur, err = _greedy(cur, err, errors, modes, n_ref, target)
-        chosen = _with_enough_points(
-            linkage, cur, reference, truncated(cur), length, target, cap
-        )
+        chosen = _with_enough_points(linkage, cur, ref_qoi, truncated(cur), target, cap)
         runs += 1
-        q_c, verified, ok = verify(chosen)
+        q_c, verified, ok, sol = verify(chosen)
         history.append((_dofs(cur), err, verified))
         if verified <= tol and ok:
             break
@@ -651,13 +871,13 @@ def _choose(
         cand, err_c = _prune(cur, np.inf, errors, trim)
         if _dofs(cand) < _dofs(cur):
             alt = _with_enough_points(
-                linkage, cand, reference, truncated(cand), length, trim, cap
+                linkage, cand, ref_qoi, truncated(cand), trim, cap
             )
             runs += 1
-            q_a, verified_a, ok_a = verify(alt)
+            q_a, verified_a, ok_a, sol_a = verify(alt)
             history.append((_dofs(cand), err_c, verified_a))
             if ok_a and verified_a <= trim:
-                chosen, cur, q_c, verified = alt, cand, q_a, verified_a
+                chosen, cur, q_c, verified, sol = alt, cand, q_a, verified_a, sol_a
     return ModelChoice(
         linkage=chosen,
         orders=dict(cur),
@@ -670,7 +890,47 @@ def _choose(
         num_solves=runs,
         seconds=time.perf_counter() - start,
         history=tuple(history),
+        quantity=ref_qoi.name,
+        solution=sol,
     )
+
+
+def _check_sensitive(ref_qoi, tangent, q_ref, index, orders_ref, state_ref):
+    """The QoI to choose with: ``ref_qoi``, or the configuration if it is blind.
+
+    A quantity other than the default is compared with the configuration on the
+    reference's Galerkin truncations (one to four orders down in every mode): if
+    it changes by less than ``INSENSITIVE`` times as much on all of them (a tip
+    held by a closed loop, a statically determinate reaction), it cannot tell
+    models apart and the smallest model would pass; a warning names it and the
+    choice is made on the configuration.
+    """
+    if ref_qoi.name == "configuration":
+        return ref_qoi
+    conf = _Qoi(ref_qoi.linkage, "configuration", ref_qoi.length)
+    states = []
+    for down in (1, 2, 3, 4):
+        lowered = {
+            key: tuple(o - down if o >= 0 else o for o in v)
+            for key, v in orders_ref.items()
+        }
+        states.append(_galerkin(tangent, q_ref, _dropped(index, lowered)))
+    stacked = _stack(states)
+    e_q = ref_qoi.errors(*stacked, *state_ref)
+    e_c = conf.errors(*stacked, *state_ref)
+    if e_c.max() > 0 and np.all(e_q <= INSENSITIVE * e_c):
+        warnings.warn(
+            f"choose_model: the quantity of interest {ref_qoi.name!r} changes by at "
+            f"most {e_q.max():.1e} (relative) between the reference and its "
+            f"truncations, where the configuration changes by up to {e_c.max():.1e}: "
+            "it cannot tell the models apart (the smallest model would pass). The "
+            "choice is made on the whole configuration (quantity='configuration') "
+            "instead.",
+            InsensitiveQuantityWarning,
+            stacklevel=3,
+        )
+        return conf
+    return ref_qoi
 
 
 def choose_model(
@@ -679,9 +939,9 @@ def choose_model(
     u: ArrayLike | None = None,
     *,
     tol: float = 1e-5,
-    quantity: Callable | None = None,
+    quantity: str | Callable | None = None,
     length: float | None = None,
-    reference_order: int = 12,
+    reference_order: int | None = None,
     reference_points: int | None = None,
     modes: tuple[int, ...] = (1, 1, 1, 1, 1, 1),
     safety: float = 0.7,
@@ -692,7 +952,10 @@ def choose_model(
 
     1. Solve a reference model: every division with the ``modes`` (default all
        six) at ``reference_order`` and ``reference_points`` (default
-       ``4 reference_order + 8``) points.
+       ``4 reference_order + 8``) points. By default the order starts at 12 and
+       rises by 4 (to at most ``MAX_REFERENCE_ORDER``), each time solved again
+       from the last, while the reference's own :func:`discretization_error` is
+       above ``REFERENCE_SHARE * tol``.
     2. Greedily raise orders (from every mode off), each time the
        (division, mode) whose next one or two orders cut the QoI error most per
        added coordinate, until that error is below ``safety * tol``. A
@@ -708,9 +971,18 @@ def choose_model(
        target by the excess and continue from step 2 (at most ``max_rounds``
        solves).
 
+    The QoI (``quantity``) is by default the whole configuration: the world poses
+    at ``PROBES + 1`` evenly spaced points of every soft division and at every
+    link's tip (positions, and rotation angles times ``length``), and the
+    reactions of closed loops and prescribed coordinates as lengths
+    (:func:`reaction_scales`). A quantity of the user's that does not change
+    between the reference and its truncations (a tip held by a closed loop) is
+    reported by an :class:`InsensitiveQuantityWarning` and replaced by the
+    configuration.
+
     The result's ``error_estimate`` is the verified distance from the reference,
     which is the true error up to the reference's own (``reference_error``,
-    reported; raise ``reference_order`` when it is not well below ``tol``).
+    reported).
 
     Args:
         linkage: the scene (soft divisions with LegendreBasis; their current orders
@@ -718,10 +990,11 @@ def choose_model(
         q0: initial guess for ``linkage`` (transferred to the reference model).
         u: actuation inputs.
         tol: tolerance on the QoI relative to ``length``.
-        quantity: ``(linkage, q) -> array`` QoI [m]; default every link's tip pose
-            (positions, and rotations times ``length``).
+        quantity: None or ``"configuration"`` (default), ``"tips"`` (every link's
+            tip pose alone), or a function ``(linkage, q) -> array`` [m].
         length: reference length [m]; default the longest link.
-        reference_order: order of the reference model's modes.
+        reference_order: order of the reference model's modes; None (default)
+            for the rising order of step 1.
         reference_points: its interior points per division.
         modes: the modes the choice may use (six 0/1 flags; e.g. ``(0, 0, 1, 0, 0,
             0)`` for a planar, inextensible rod).
@@ -732,33 +1005,57 @@ def choose_model(
         t: time for time-dependent loads [s].
 
     Returns:
-        A :class:`ModelChoice`.
+        A :class:`ModelChoice` (its ``solution`` is the chosen model's
+        :class:`~sorojax.StaticsSolution`).
 
     Raises:
-        ValueError: a division without LegendreBasis, bad ``tol`` or ``modes``.
+        ValueError: a division without LegendreBasis, bad ``tol``, ``modes`` or
+            ``quantity``.
         RuntimeError: the reference solve fails.
     """
     start = time.perf_counter()
-    modes, length, user, reference, pts = _reference_model(
-        linkage, tol, modes, length, reference_order, reference_points
-    )
-    q0_ref = None if q0 is None else transfer_coordinates(linkage, q0, reference)
-    sol_ref = solve_statics(reference, q0_ref, u, t=t, warn_unstable=False)
-    q_ref = np.asarray(sol_ref.q)
+    rising = reference_order is None
+    n_ref = REFERENCE_ORDER if rising else int(reference_order)
+    q_prev, prev = q0, linkage
+    while True:
+        modes, length, user, reference, pts = _reference_model(
+            linkage, tol, modes, length, n_ref, reference_points
+        )
+        q0_ref = (
+            None if q_prev is None else transfer_coordinates(prev, q_prev, reference)
+        )
+        sol_ref = solve_statics(reference, q0_ref, u, t=t, warn_unstable=False)
+        q_ref = np.asarray(sol_ref.q)
+        # The reference's tangent at its solution: candidates are judged by their
+        # Galerkin solution of the equilibrium linearised there (exact up to second
+        # order in their error), not by plain truncation, which misses the coupling
+        # of modes (a hanging rod's truncation error was 80x below its model's).
+        tangent = _equilibrium_tangent(reference, q_ref, u, sol_ref.lam, t)
+        ref_qoi = _Qoi(reference, quantity, length)
+        ref_err = _estimate(reference, q_ref, tangent, ref_qoi).error
+        if (
+            not rising
+            or ref_err <= REFERENCE_SHARE * tol
+            or n_ref >= MAX_REFERENCE_ORDER
+        ):
+            break
+        q_prev, prev = q_ref, reference
+        n_ref += 4
     index = _coefficient_index(reference)
-    # The reference's tangent at its solution: candidates are judged by their
-    # Galerkin solution of the equilibrium linearised there (exact up to second
-    # order in their error), not by plain truncation, which misses the coupling of
-    # modes (a hanging rod's truncation error was 80x below its model's error).
-    tangent = _equilibrium_tangent(reference, q_ref, u, sol_ref.lam, t)
-    ref_err = _estimate(reference, q_ref, tangent, quantity, length).error
+    state_ref = (q_ref, tangent[2][len(tangent[1]) :], tangent[3][1])
+    checked = _check_sensitive(
+        ref_qoi, tangent, q_ref, index, division_orders(reference), state_ref
+    )
+    if checked is not ref_qoi:
+        ref_qoi = checked
+        ref_err = _estimate(reference, q_ref, tangent, ref_qoi).error
 
     def truncated(orders):
-        return _galerkin(*tangent, q_ref, _dropped(index, orders))
+        return _galerkin(tangent, q_ref, _dropped(index, orders))[0]
 
     def errors(candidates):
-        qs = np.asarray([truncated(c) for c in candidates])
-        return _qoi_error(reference, qs, jnp.asarray(q_ref), length, quantity)
+        states = [_galerkin(tangent, q_ref, _dropped(index, c)) for c in candidates]
+        return ref_qoi.errors(*_stack(states), *state_ref)
 
     def verify(chosen):
         sol = solve_statics(
@@ -770,18 +1067,16 @@ def choose_model(
             throw=False,
         )
         q_c = np.asarray(sol.q)
-        if quantity is None:  # with the chosen model's own kinematics (its points)
-            err = _kinematic_difference(chosen, q_c, reference, q_ref, length)
-        else:
-            a = np.asarray(quantity(chosen, jnp.asarray(q_c)))
-            b = np.asarray(quantity(reference, jnp.asarray(q_ref)))
-            err = float(np.max(np.abs(a - b)) / length)
-        return q_c, err, int(sol.result._value) == 0
+        qoi = _Qoi(chosen, ref_qoi.quantity, length)  # its own kinematics (points)
+        err = float(
+            qoi.against(ref_qoi, q_c, sol.lam[None], sol.efforts[None], *state_ref)[0]
+        )
+        return q_c, err, int(sol.result._value) == 0, sol
 
     return _choose(
         linkage,
         user,
-        reference,
+        ref_qoi,
         q_ref,
         truncated,
         errors,
@@ -792,9 +1087,39 @@ def choose_model(
         safety=safety,
         max_rounds=max_rounds,
         cap=4 * pts,
-        length=length,
         start=start,
     )
+
+
+def solve_statics_adequate(
+    linkage: Linkage,
+    q0: ArrayLike | None = None,
+    u: ArrayLike | None = None,
+    *,
+    tol: float = 1e-6,
+    **choose_kwargs,
+) -> ModelChoice:
+    """Solve the statics of ``linkage`` at the model its tolerance needs.
+
+    ``choose_model(linkage, q0, u, tol=tol, **choose_kwargs)``: a user who does not
+    know GVS orders gives the scene (any orders: they only carry ``q0``) and a
+    tolerance on the whole configuration (relative to the longest link), and gets
+    the chosen model's solution, verified against a reference model:
+    ``.solution`` (a :class:`~sorojax.StaticsSolution` of ``.linkage``),
+    ``.orders``, ``.n_dof`` and ``.error_estimate``.
+
+    It is a function apart from :func:`~sorojax.solve_statics` because choosing
+    changes the model (its coordinates' number): it runs on the host, solving and
+    compiling several models, so it cannot run under ``jit``, ``vmap`` or
+    ``grad``; differentiate ``solve_statics`` of the chosen ``.linkage``.
+
+    Example:
+        ``res = sj.solve_statics_adequate(lk, tol=1e-6); res.solution.q``
+
+    Returns:
+        A :class:`ModelChoice`.
+    """
+    return choose_model(linkage, q0, u, tol=tol, **choose_kwargs)
 
 
 def choose_model_dynamics(
@@ -805,6 +1130,7 @@ def choose_model_dynamics(
     *,
     tol: float = 1e-3,
     n_save: int = 21,
+    quantity: str = "configuration",
     length: float | None = None,
     reference_order: int = 6,
     reference_points: int | None = None,
@@ -815,8 +1141,10 @@ def choose_model_dynamics(
 ) -> ModelChoice:
     """Choose the Legendre orders a trajectory window ``[0, t1]`` needs.
 
-    As :func:`choose_model`, on the tip poses at ``n_save`` evenly spaced times:
-    a reference model (``modes`` at ``reference_order``, ``4 order + 8`` points) is
+    As :func:`choose_model`, on the QoI at ``n_save`` evenly spaced times (by
+    default the configuration: poses at the probes of every soft division and at
+    every link's tip; no reactions; ``"tips"`` for the tip poses alone): a
+    reference model (``modes`` at ``reference_order``, ``4 order + 8`` points) is
     simulated; candidates are judged by *truncating* the reference trajectory
     (no linearised Galerkin proxy here, so the verification simulation, which
     tightens and repeats when above ``tol``, matters more); the points are doubled
@@ -832,6 +1160,8 @@ def choose_model_dynamics(
     from ..integrate import simulate  # statics and integrate are peers: no cycle
 
     start = time.perf_counter()
+    if callable(quantity) or quantity not in QUANTITIES:
+        raise ValueError(f"quantity = {quantity!r}: give one of {QUANTITIES}.")
     modes, length, user, reference, pts = _reference_model(
         linkage, tol, modes, length, reference_order, reference_points
     )
@@ -851,7 +1181,8 @@ def choose_model_dynamics(
     )
     q_ref = np.asarray(traj.q)
     index = _coefficient_index(reference)
-    g_ref = np.asarray(_tip_poses(reference, jnp.asarray(q_ref)))
+    ref_qoi = _Qoi(reference, quantity, length)
+    g_ref = ref_qoi.poses(q_ref)
 
     def truncated(orders):
         q = q_ref.copy()
@@ -860,7 +1191,7 @@ def choose_model_dynamics(
 
     def errors(candidates):
         qs = np.concatenate([truncated(c) for c in candidates])
-        g = np.asarray(_tip_poses(reference, jnp.asarray(qs)))
+        g = ref_qoi.poses(qs)
         g = g.reshape(len(candidates), len(q_ref), *g.shape[1:])
         return pose_distance(g, g_ref[None], length).max(axis=(1, 2))
 
@@ -875,14 +1206,14 @@ def choose_model_dynamics(
             **simulate_kwargs,
         )
         q_c = np.asarray(tr.q)
-        err = _kinematic_difference(chosen, q_c, reference, q_ref, length)
-        return q_c, err, int(tr.result._value) == 0
+        err = _Qoi(chosen, quantity, length).kinematics(ref_qoi, q_c, q_ref)
+        return q_c, err, int(tr.result._value) == 0, None
 
-    ref_err = _estimate(reference, np.asarray(q_ref[-1]), None, None, length).error
+    ref_err = _estimate(reference, np.asarray(q_ref[-1]), None, ref_qoi).error
     return _choose(
         linkage,
         user,
-        reference,
+        ref_qoi,
         q_ref,
         truncated,
         errors,
@@ -893,6 +1224,5 @@ def choose_model_dynamics(
         safety=safety,
         max_rounds=max_rounds,
         cap=4 * pts,
-        length=length,
         start=start,
     )
