@@ -250,16 +250,17 @@ def _figure(out, Ts, s_grid, J_grid, path):
     ax[0].set(xlabel="cable tension T [N]", ylabel="J [N]",
               title=f"J = T + slip penalty (S_MAX = {S_MAX * 1e3:g} mm)")  # fmt: skip
     ax[0].legend()
-    ax[1].semilogy(Ts, np.abs(s_grid) * 1e3, "o-", color="0.5", label="grid")
-    ax[1].semilogy(P[:, 0], np.abs(P[:, 3]) * 1e3, "C0.", label="descent")
+    ax[1].plot(Ts, s_grid * 1e3, "o-", color="0.5", label="grid")
+    ax[1].plot(P[:, 0], P[:, 3] * 1e3, "C0.", label="descent")
     ax[1].axhline(S_MAX * 1e3, color="k", ls="--", lw=0.8, label="S_MAX")
     # the forward-mode slopes at the descent's tensions
     for T, _, _, s, ds in P:
-        dT = np.array([-0.15, 0.15])
-        ax[1].plot(T + dT, np.abs(s + ds * dT) * 1e3, "C1", lw=1.5)
+        dT = np.array([-0.2, 0.2])
+        ax[1].plot(T + dT, (s + ds * dT) * 1e3, "C1", lw=1.5)
     ax[1].plot([], [], "C1", label="forward-mode d slip / dT")
-    ax[1].set(xlabel="cable tension T [N]", ylabel="|slip| by t1 [mm]",
-              title="the ball's slip in the fingers")  # fmt: skip
+    ax[1].set_yscale("symlog", linthresh=1.0)
+    ax[1].set(xlabel="cable tension T [N]", ylabel="slip by t1 [mm]",
+              title="the ball's slip in the fingers (< 0: drawn up)")  # fmt: skip
     ax[1].legend()
     fig.tight_layout()
     fig.savefig(out, dpi=110)
