@@ -2,27 +2,33 @@
 
 Run from the repository root::
 
-    .venv/bin/python benchmarks/adequacy.py             # 12 scenes, uniform orders to 16
+    .venv/bin/python benchmarks/adequacy.py             # 14 scenes, uniform orders to 16
     .venv/bin/python benchmarks/adequacy.py --quick     # 6 scenes, orders to 10, 3 repeats
     .venv/bin/python benchmarks/adequacy.py --scenes planar_tip_force l_beam
 
-For every scene (tip loads, gravity, cables, closed loops, a rigid + soft chain; every
-soft division has a Legendre basis) and every tolerance in ``TOLS`` (relative to the
+For every scene (tip loads, gravity, cables, closed loops, a rigid + soft chain, a rod
+clamped at both ends buckled to 0.8 L and one whose far end is clamped at a twisted
+out-of-plane pose; every soft division has a Legendre basis) and every tolerance in ``TOLS`` (relative to the
 reference length, the longest link):
 
 - **reference**: the scene with every soft division at all six modes, Legendre order
   16, 100 interior points (``sorojax.with_orders``), solved by
   ``sorojax.solve_statics`` (must succeed); its own convergence is the distance from
-  the same at order 14. The *true error* of any model is the largest tip-pose distance
-  over every link's tip (``pose_distance``: ``max(|dp|, L angle) / L``) between its
-  solution and the reference's.
+  the same at order 14. The *true error* of any model is its distance from the
+  reference on ``choose_model``'s default quantity: the largest pose distance
+  (``pose_distance``: ``max(|dp|, L angle) / L``) over 17 points of every soft
+  division and every link's tip, and the closed-loop and prescribed reactions as
+  lengths (``reaction_scales``); the tip-pose distance alone is recorded too.
 - **adaptive**: ``sorojax.choose_model(linkage, q0, u, tol=tol)`` at its defaults.
   Recorded: its DoF and orders, its error estimate (the verified distance from its
-  own order-12 reference), the true error, the solves it made and its wall time,
+  own reference, order 12 raised by 4 while its estimated error exceeds 0.2 tol),
+  the true error, the solves it made and its wall time,
   once cold (first call for the scene and tolerance in this process: includes the
   compiles, except those it shares with an earlier tolerance of the same scene) and
   once again (everything compiled: the choice's own cost); and the warm time of one
-  ``solve_statics`` of the chosen model from the scene's guess.
+  ``solve_statics`` of the chosen model from the scene's guess. The same choice on
+  the tip poses alone (``quantity="tips"``, order-12 reference) is run twice: its
+  DoF, solves and second-call seconds give the cost of the whole configuration.
 - **uniform**: the scene's own modes at uniform order k = 0, 1, 2, ... (default
   points), and, when those cannot reach every tolerance (a mode the scene left out
   matters), all six modes at uniform order k. A sweep stops at order 16 (10 with
@@ -34,7 +40,7 @@ Warm times: median of repeated public ``solve_statics`` calls after a warm-up (f
 the scene's guess, never from the solution), each blocked; compile time apart.
 Writes ``benchmarks/results/adequacy.csv`` (one row per scene x tolerance x model),
 ``adequacy.json`` (environment, references, per scene and tolerance the acceptance
-points of issue 16) and ``adequacy.png`` (true error vs DoF and vs warm time).
+points) and ``adequacy.png`` (true error vs DoF and vs warm time).
 """
 
 import argparse
@@ -60,6 +66,7 @@ import sorojax as sj  # noqa: E402
 from sorojax import scenes  # noqa: E402
 from sorojax._mechanisms import cable_manipulator  # noqa: E402
 from sorojax.statics._adequacy import (  # noqa: E402
+    _Qoi,
     _tip_poses,
     division_orders,
     pose_distance,
@@ -294,6 +301,71 @@ def hybrid_chain():
     )
 
 
+def _clamped_rod(order):
+    rod = _rod(L_C, R_C, E_C, ALL_SIX, order)
+    return rod
+
+
+def clamped_buckled():
+    lk = sj.Linkage(
+        _clamped_rod(6),
+        closed_loops=[
+            sj.ClosedLoopJoint(sj.Joint("N"), 1, 0, g_B=sj.translation(0.8 * L_C))
+        ],
+    )
+    a = math.sqrt(0.8) * L_C / math.pi  # linear theory's amplitude at 0.8 L
+    k = 2 * math.pi / L_C
+
+    def strain(s):
+        return jnp.stack([0.0, 0.0, a / 2 * k**2 * jnp.cos(k * s), 1.0, 0.0, 0.0])
+
+    return Scene(
+        "clamped_buckled",
+        "one rod (E 1 MPa, r 5 mm, L 0.4 m) clamped at both ends, the far end at 0.8 L"
+        " (closed loop: the tip is held), buckled from the first mode; all six modes,"
+        " order 6",
+        lk,
+        q0=np.asarray(sj.strain_coordinates(lk, strain)),
+    )
+
+
+def twisted_end_pose():
+    """The far end at (0.6, 0.3, 0.25) L, turned Rz(0.5) Ry(-0.6) Rx(1.2)."""
+
+    def rot(axis, angle):
+        c, s_ = math.cos(angle), math.sin(angle)
+        i, j = [(1, 2), (2, 0), (0, 1)][axis]
+        m = np.eye(3)
+        m[i, i] = m[j, j] = c
+        m[i, j], m[j, i] = -s_, s_
+        return m
+
+    g = np.eye(4)
+    g[:3, :3] = rot(2, 0.5) @ rot(1, -0.6) @ rot(0, 1.2)
+    g[:3, 3] = np.array([0.6, 0.3, 0.25]) * L_C
+    return g
+
+
+def clamped_twisted():
+    from sorojax.lie import log_se3
+
+    g = twisted_end_pose()
+    lk = sj.Linkage(
+        _clamped_rod(6),
+        closed_loops=[sj.ClosedLoopJoint(sj.Joint("N"), 1, 0, g_B=jnp.asarray(g))],
+    )
+    # the constant strain that reaches the far clamp
+    xi = np.asarray(log_se3(jnp.asarray(g))) / L_C
+    return Scene(
+        "clamped_twisted",
+        "the same rod clamped at both ends, the far end at (0.6, 0.3, 0.25) L turned"
+        " Rz(0.5) Ry(-0.6) Rx(1.2) (out of plane, twisted; closed loop), from the"
+        " constant strain reaching it; all six modes, order 6",
+        lk,
+        q0=np.asarray(sj.strain_coordinates(lk, jnp.asarray(xi))),
+    )
+
+
 SCENES = {
     f.__name__: f
     for f in (
@@ -309,6 +381,8 @@ SCENES = {
         clamped_loop,
         l_beam,
         hybrid_chain,
+        clamped_buckled,
+        clamped_twisted,
     )
 }
 
@@ -353,7 +427,12 @@ def _orders_str(orders):
 
 
 class Truth:
-    """The over-resolved reference of a scene and the true error of any model."""
+    """The over-resolved reference of a scene and the true error of any model.
+
+    The error is on ``choose_model``'s default quantity (``_Qoi``: poses at 17
+    points of every soft division and at every link's tip, reactions as lengths);
+    ``tip_error`` on the tip poses alone.
+    """
 
     def __init__(self, scene):
         lk = scene.linkage
@@ -370,6 +449,8 @@ class Truth:
                 f"{scene.name}: the reference solve failed ({sol.result})"
             )
         self.q = np.asarray(sol.q)
+        self.state = (self.q, np.asarray(sol.lam)[None], np.asarray(sol.efforts)[None])
+        self.qoi = _Qoi(self.model, None, self.length)
         self.steps = int(sol.num_steps)
         self.stable = bool(sol.stable)
         self.g = np.asarray(_tip_poses(self.model, jnp.asarray(self.q)[None]))[0]
@@ -378,10 +459,15 @@ class Truth:
         )
         sol_c = _solve(check, _transfer(scene, check), scene.u)
         self.check_result = int(sol_c.result._value)
-        self.self_error = self.error(check, sol_c.q)
+        self.self_error = self.error(check, sol_c)
         self.n_dof = self.model.n_dof
 
-    def error(self, lk, q):
+    def error(self, lk, sol):
+        qoi = _Qoi(lk, None, self.length)
+        lam, eff = np.asarray(sol.lam)[None], np.asarray(sol.efforts)[None]
+        return float(qoi.against(self.qoi, sol.q, lam, eff, *self.state)[0])
+
+    def tip_error(self, lk, q):
         g = np.asarray(_tip_poses(lk, jnp.asarray(q)[None]))[0]
         return float(pose_distance(g, self.g, self.length).max())
 
@@ -401,11 +487,24 @@ def run_scene(scene, *, kmax, repeats, log):
         again = time.perf_counter() - t0
         if c2.n_dof != c.n_dof:
             log(f"  note: repeated choice differs ({c.n_dof} vs {c2.n_dof} DoF)")
-        choices[tol] = (c, cold, again)
+        # the same choice on the tip poses alone (order-12 reference): the cost of
+        # the whole configuration
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", sj.InsensitiveQuantityWarning)
+            sj.choose_model(
+                lk, scene.q0, u, tol=tol, quantity="tips", reference_order=12
+            )
+            t0 = time.perf_counter()
+            c_tips = sj.choose_model(
+                lk, scene.q0, u, tol=tol, quantity="tips", reference_order=12
+            )
+            tips_again = time.perf_counter() - t0
+        choices[tol] = (c, cold, again, c_tips, tips_again)
         log(
             f"  choose_model tol {tol:.0e}: {c.n_dof} DoF, estimate "
             f"{c.error_estimate:.2e}, {c.num_solves} solves, {cold:.1f} s cold, "
-            f"{again:.1f} s again"
+            f"{again:.1f} s again; on tips: {c_tips.n_dof} DoF, "
+            f"{c_tips.num_solves} solves, {tips_again:.2f} s again"
         )
     truth = Truth(scene)
     log(
@@ -425,11 +524,11 @@ def run_scene(scene, *, kmax, repeats, log):
         "length": truth.length,
     }
     rows = []
-    for tol, (c, cold, again) in choices.items():
+    for tol, (c, cold, again, c_tips, tips_again) in choices.items():
         q0c = _transfer(scene, c.linkage)
         sol = _solve(c.linkage, q0c, u)
         warm, warm_min = _warm_time(c.linkage, q0c, u, repeats)
-        true = truth.error(c.linkage, c.q)
+        true = truth.error(c.linkage, c.solution)
         ng = sorted(
             {
                 d.n_gauss
@@ -462,6 +561,14 @@ def run_scene(scene, *, kmax, repeats, log):
                 "choice_seconds_cold": cold,
                 "choice_seconds_again": again,
                 "choice_history": repr(c.history),
+                "reference_order": max(
+                    o for v in division_orders(c.reference).values() for o in v
+                ),
+                "tip_error": truth.tip_error(c.linkage, c.q),
+                "tips_n_dof": c_tips.n_dof,
+                "tips_solves": c_tips.num_solves,
+                "tips_seconds_again": tips_again,
+                "tips_quantity": c_tips.quantity,
             }
         )
     # uniform sweeps
@@ -476,7 +583,7 @@ def run_scene(scene, *, kmax, repeats, log):
             sol = _solve(m, q0m, u)
             first = time.perf_counter() - t0
             res = int(sol.result._value)
-            err_any = truth.error(m, sol.q)
+            err_any = truth.error(m, sol)
             err = err_any if res == 0 and np.isfinite(err_any) else math.inf
             warm, warm_min = _warm_time(m, q0m, u, repeats)
             uniform.append(
@@ -533,7 +640,7 @@ def run_scene(scene, *, kmax, repeats, log):
             )
     # acceptance points
     summary = {}
-    for tol, (c, cold, again) in choices.items():
+    for tol, (c, cold, again, c_tips, tips_again) in choices.items():
         a = next(r for r in rows if r["tol"] == tol and r["model"] == "adaptive")
         meeting = [r for r in uniform if r["true_error"] <= tol]
         by_kind = {
@@ -558,6 +665,12 @@ def run_scene(scene, *, kmax, repeats, log):
             "choice_solves": c.num_solves,
             "choice_seconds_cold": cold,
             "choice_seconds_again": again,
+            "reference_order": a["reference_order"],
+            "adaptive_tip_error": a["tip_error"],
+            "tips_n_dof": c_tips.n_dof,
+            "tips_solves": c_tips.num_solves,
+            "tips_seconds_again": tips_again,
+            "tips_quantity": c_tips.quantity,
             "pass_meets_tol": a["true_error"] <= tol,
             "pass_fewer_dof": u_best is None or a["n_dof"] < u_best["n_dof"],
             "pass_fewer_or_equal_dof": u_best is None or a["n_dof"] <= u_best["n_dof"],
@@ -623,7 +736,7 @@ def plot(rows, path):
     for ax in axes:
         for tol in TOLS:
             ax.axhline(tol, color="k", lw=0.8, ls=":")
-        ax.set_ylabel("true error (max tip-pose distance / L)")
+        ax.set_ylabel("true error (configuration distance / L)")
         ax.grid(True, which="both", alpha=0.25)
     axes[0].set_xlabel("DoF")
     axes[1].set_xlabel("warm solve_statics time [ms] (2-core CPU)")
@@ -633,7 +746,7 @@ def plot(rows, path):
         fontsize=10,
     )
     axes[1].set_title("error vs warm time", fontsize=10)
-    fig.legend(loc="lower center", ncol=6, fontsize=8, frameon=False)
+    fig.legend(loc="lower center", ncol=7, fontsize=8, frameon=False)
     fig.tight_layout(rect=(0, 0.08, 1, 1))
     fig.savefig(path, dpi=120)
 
@@ -783,6 +896,12 @@ def main(argv=None):
         "choice_seconds_cold",
         "choice_seconds_again",
         "choice_history",
+        "reference_order",
+        "tip_error",
+        "tips_n_dof",
+        "tips_solves",
+        "tips_seconds_again",
+        "tips_quantity",
     ]
     with open(out / f"{stem}.csv", "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=fields)
