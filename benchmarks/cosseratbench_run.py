@@ -1,9 +1,11 @@
-"""cosseratbench: sorojax, PyElastica and MuJoCo on the four contact-free experiments.
+"""cosseratbench: sorojax, PyElastica and MuJoCo on the benchmark's experiments.
 
 The third-party rod benchmark cosseratbench (0.3) runs each solver through its own
 adapter (sorojax's: ``sorojax/contrib/cosseratbench.py``, entry point in
-pyproject.toml) on cantilever, catenary, pendulum and twist at their default
-parameters and resolutions, one run at a time (``-j 1``): the benchmark times each
+pyproject.toml) on cantilever, catenary, pendulum, twist and the contact
+experiments crossing, capstan and pile at their default parameters and
+resolutions, and capstan's ``overhang`` variants (``--vary-solvers``, default
+sorojax), one run at a time (``-j 1``): the benchmark times each
 run itself, after an untimed warm-up call of the same scene at 1e-3 of its duration
 (so JAX compilation is not in the wall time). Needs the ``bench`` extra
 (cosseratbench, pyelastica, mujoco)::
@@ -15,15 +17,16 @@ run itself, after an untimed warm-up call of the same scene at 1e-3 of its durat
 
 Equivalent CLI run (without the table, the figure and the pruning)::
 
-    cosseratbench run cantilever catenary pendulum twist -s sorojax -s pyelastica \\
-        -s mujoco -o benchmarks/results/cosseratbench -j 1 --force
+    cosseratbench run cantilever catenary pendulum twist crossing capstan pile \\
+        -s sorojax -s pyelastica -s mujoco -o benchmarks/results/cosseratbench -j 1
+    cosseratbench run capstan -v overhang -s sorojax -o benchmarks/results/cosseratbench
 
 Writes ``benchmarks/results/cosseratbench/``: the benchmark's own layout
 (``EXPERIMENT/default/experiment.json`` and ``.../SOLVER/result.json`` with metrics,
 wall time and each adapter's settings), ``trajectory.npz`` files under 1 MB (the
 twist's, ~4 MB each, are dropped after the figure is drawn; ``--keep-trajectories``
 keeps them), ``summary.json`` (the table, sorojax's models, the machine),
-``cosseratbench.md`` (the table) and ``cosseratbench.png`` (final shapes against the
+``cosseratbench.md`` (the tables) and ``cosseratbench.png`` (final shapes against the
 references, the pendulum's free end, the twisted rods' sideways growth).
 """
 
@@ -42,14 +45,25 @@ os.environ.setdefault("SOROJAX_COMPILE", "full")
 import numpy as np
 
 OUT = Path(__file__).resolve().parent / "results" / "cosseratbench"
-EXPERIMENTS = ("cantilever", "catenary", "pendulum", "twist")
+EXPERIMENTS = (
+    "cantilever",
+    "catenary",
+    "pendulum",
+    "twist",
+    "crossing",
+    "capstan",
+    "pile",
+)
+FIGURE = ("cantilever", "catenary", "pendulum", "twist")
+VARY = {"capstan": ("overhang",)}
+"""Parameters swept (every value) for the ``--vary-solvers``."""
 SOLVERS = ("sorojax", "pyelastica", "mujoco")
 LABELS = {"sorojax": "sorojax", "pyelastica": "PyElastica", "mujoco": "MuJoCo"}
 PACKAGES = {"sorojax": "sorojax", "pyelastica": "pyelastica", "mujoco": "mujoco"}
 KEEP_BYTES = 1_000_000
 
 
-def _run(experiments, solvers, out: Path, force: bool) -> dict:
+def _run(experiments, solvers, vary_solvers, out: Path, force: bool) -> dict:
     """Run the tasks not saved yet, one at a time; seconds each took in all.
 
     The total of a task includes what the benchmark's ``wall_time`` leaves out:
@@ -66,22 +80,68 @@ def _run(experiments, solvers, out: Path, force: bool) -> dict:
         out,
         force=force,
     )
+    for e in experiments:
+        if e in VARY and vary_solvers:
+            tasks += [
+                t
+                for t in runs.plan(
+                    [registry.load_experiment(e)],
+                    list(vary_solvers),
+                    list(VARY[e]),
+                    None,
+                    out,
+                    force=force,
+                )
+                if t.variant.key != "default"
+            ]
     totals = {}
     for task in tasks:
         start = time.perf_counter()
         runs.execute([task], jobs=1)
-        totals[f"{task.experiment}/{task.solver}"] = time.perf_counter() - start
+        key = f"{task.experiment}/{task.variant.key}/{task.solver}"
+        totals[key] = time.perf_counter() - start
     return totals
 
 
-def _results(out: Path, experiments, solvers) -> dict:
+def _results(out: Path, experiments, solvers, variant: str = "default") -> dict:
     found: dict = {}
     for e in experiments:
         for s in solvers:
-            path = out / e / "default" / s / "result.json"
+            path = out / e / variant / s / "result.json"
             if path.exists():
                 found[(e, s)] = json.loads(path.read_text())
     return found
+
+
+def _variants(out: Path) -> dict:
+    """Saved variant runs: ``{(experiment, key, solver): result}`` (not defaults)."""
+    found: dict = {}
+    for e, names in VARY.items():
+        for path in sorted(out.glob(f"{e}/*/*/result.json")):
+            key, solver = path.parent.parent.name, path.parent.name
+            if key != "default" and key.split("=")[0] in names:
+                found[(e, key, solver)] = json.loads(path.read_text())
+    return found
+
+
+def variant_table(found: dict) -> str:
+    """The markdown table of the variant runs: metrics, penetration, wall time."""
+    if not found:
+        return ""
+    lines = [
+        "| case | variant | solver | metrics | max penetration | wall time |",
+        "|---|---|---|---|---|---|",
+    ]
+    for (e, key, s), summ in sorted(found.items()):
+        if summ["outcome"] == "completed":
+            metrics = ", ".join(f"{k} {_fmt(v)}" for k, v in summ["metrics"].items())
+            pen = _fmt(summ["observations"].get("max_penetration"))
+        else:
+            metrics, pen = _cell(summ), ""
+        lines.append(
+            f"| {e} | {key} | {LABELS[s]} | {metrics} | {pen} | {_cell(summ)} |"
+        )
+    return "\n".join(lines)
 
 
 def _fmt(x) -> str:
@@ -103,6 +163,15 @@ def _cell(summary, metric=None) -> str:
     return _fmt(summary["metrics"].get(metric))
 
 
+CONTACT = ("crossing", "capstan", "pile")
+
+
+def _observed(summary, name) -> str:
+    if summary is None or summary["outcome"] != "completed":
+        return _cell(summary)
+    return _fmt(summary["observations"].get(name))
+
+
 def _total(summary) -> str:
     if summary is None or "total_seconds_incl_warm_up" not in summary:
         return "n/a"
@@ -112,9 +181,20 @@ def _total(summary) -> str:
 def _model(summary) -> str:
     if summary is None or not summary.get("settings"):
         return ""
-    m = summary["settings"].get("model", {})
+    m = summary["settings"].get("model") or summary["settings"].get("model0", {})
     orders = ", ".join(f"{k} {v}" for k, v in m.get("orders", {}).items())
-    return f"{orders}; {m.get('n_dof')} DoF; {m.get('method')}"
+    div = m.get("divisions", 1)
+    divs = f" x {div} divisions" if div > 1 else ""
+    text = f"{orders}{divs}; {m.get('n_dof')} DoF; {m.get('method')}"
+    c = summary["settings"].get("contact")
+    if c:
+        k = ", ".join(
+            f"{name.split('_')[0]} k {v:.3g}"
+            for name, v in c.items()
+            if "stiff" in name
+        )
+        text += f"; contact {k} (target {c.get('target_penetration')})"
+    return text
 
 
 def table(found, experiments, solvers) -> str:
@@ -131,6 +211,11 @@ def table(found, experiments, solvers) -> str:
         for metric in metrics:
             cells = [_cell(found.get((e, s)), metric) for s in solvers]
             lines.append(f"| {e} | {metric} | " + " | ".join(cells) + " |")
+        if e in CONTACT:
+            for obs in ("max_penetration", "max_rod_overlap"):
+                cells = [_observed(found.get((e, s)), obs) for s in solvers]
+                if any(c not in ("n/a", "not run", "unsupported") for c in cells):
+                    lines.append(f"| {e} | {obs} | " + " | ".join(cells) + " |")
         cells = [_cell(found.get((e, s))) for s in solvers]
         lines.append(f"| {e} | wall time (timed run) | " + " | ".join(cells) + " |")
         cells = [_total(found.get((e, s))) for s in solvers]
@@ -157,7 +242,7 @@ def figure(out: Path, experiments, solvers) -> Path | None:
     styles = {"sorojax": "-", "pyelastica": "--", "mujoco": ":"}
     colours = {"sorojax": "tab:blue", "pyelastica": "tab:orange", "mujoco": "tab:green"}
     drew = False
-    for ax, e in zip(axes.flat, EXPERIMENTS, strict=True):
+    for ax, e in zip(axes.flat, FIGURE, strict=True):
         if e not in experiments:
             ax.set_visible(False)
             continue
@@ -268,6 +353,13 @@ def main() -> None:
         "--experiments", nargs="+", default=list(EXPERIMENTS), choices=EXPERIMENTS
     )
     p.add_argument("--solvers", nargs="+", default=list(SOLVERS), choices=SOLVERS)
+    p.add_argument(
+        "--vary-solvers",
+        nargs="*",
+        default=["sorojax"],
+        choices=SOLVERS,
+        help="solvers run on the VARY sweeps (none: no sweeps)",
+    )
     p.add_argument("--out", type=Path, default=OUT)
     p.add_argument("--force", action="store_true", help="rerun runs already saved")
     p.add_argument("--keep-trajectories", action="store_true")
@@ -280,7 +372,9 @@ def main() -> None:
     here = Path.cwd()
     os.chdir(args.out)  # MuJoCo writes MUJOCO_LOG.TXT into the working folder
     try:
-        totals = _run(args.experiments, args.solvers, args.out, args.force)
+        totals = _run(
+            args.experiments, args.solvers, args.vary_solvers, args.out, args.force
+        )
     finally:
         os.chdir(here)
     env["load_average_at_end"] = list(os.getloadavg())
@@ -295,20 +389,25 @@ def main() -> None:
                 dropped.append(str(path.relative_to(args.out)))
                 path.unlink()
     for (e, s), summ in found.items():  # runs of this invocation: their total time
-        if f"{e}/{s}" in totals:
-            summ["total_seconds_incl_warm_up"] = totals[f"{e}/{s}"]
+        if f"{e}/default/{s}" in totals:
+            summ["total_seconds_incl_warm_up"] = totals[f"{e}/default/{s}"]
             path = args.out / e / "default" / s / "total_seconds.json"
             path.write_text(
-                json.dumps({"total_seconds_incl_warm_up": totals[f"{e}/{s}"]}) + "\n"
+                json.dumps({"total_seconds_incl_warm_up": totals[f"{e}/default/{s}"]})
+                + "\n"
             )
         elif (path := args.out / e / "default" / s / "total_seconds.json").exists():
             summ.update(json.loads(path.read_text()))
+    variants = _variants(args.out)
     text = table(found, args.experiments, SOLVERS)
+    if variants:
+        text += "\n\n" + variant_table(variants)
     print(text)
     (args.out / "cosseratbench.md").write_text(text + "\n")
     summary = {
         "environment": env,
         "results": [found[k] for k in sorted(found)],
+        "variant_results": [variants[k] for k in sorted(variants)],
         "dropped_trajectories": dropped,
         "figure": None if fig is None else fig.name,
     }

@@ -1,9 +1,10 @@
 """The cosseratbench adapter (sorojax/contrib/cosseratbench.py) on short cases.
 
 Skipped without cosseratbench (``pip install -e ".[test]"`` installs it). One static
-scene through the adapter's ``run`` at a low resolution (one compile, ~5 s); the
-dynamic path (frame chunks, pre-stretched initial fit) is marked ``slow`` (its
-compile adds ~10 s): ``pytest tests/test_cosseratbench.py -m slow``.
+scene through the adapter's ``run`` at a low resolution (one compile, ~5 s) and the
+contact scenes' modelling choices (no solve); the dynamic path (frame chunks,
+pre-stretched initial fit) and a crossing run are marked ``slow`` (their compiles
+take from ~10 s to minutes): ``pytest tests/test_cosseratbench.py -m slow``.
 """
 
 import numpy as np
@@ -14,6 +15,8 @@ cb = pytest.importorskip(
 )
 
 from cosseratbench.experiments.cantilever import cantilever  # noqa: E402
+from cosseratbench.experiments.capstan import capstan  # noqa: E402
+from cosseratbench.experiments.crossing import crossing  # noqa: E402
 from cosseratbench.experiments.pendulum import pendulum  # noqa: E402
 
 from sorojax.contrib.cosseratbench import SorojaxSolver  # noqa: E402
@@ -26,9 +29,7 @@ def test_solver_contract():
     solver = SorojaxSolver()
     assert isinstance(solver, cb.Solver)
     assert solver.name == "sorojax"
-    assert solver.capabilities == frozenset(
-        {cb.Capability.STRETCH, cb.Capability.SHEAR}
-    )
+    assert solver.capabilities == frozenset(cb.Capability)
     assert "sorojax" in registry.names(registry.SOLVERS), "entry point not installed"
     assert SorojaxSolver(time_step_scale=2.0).time_step_scale == 2.0
 
@@ -101,3 +102,29 @@ def test_pendulum_short_swing():
     strain = np.linalg.norm(np.diff(x, axis=1), axis=2) / (rod.length / n) - 1
     bound = 1.2 * rod.material.density * 9.81 * rod.length / rod.material.youngs_modulus
     assert np.abs(strain).max() < bound, f"max element strain {np.abs(strain).max()}"
+
+
+def test_contact_scenes_model_choices():
+    """The contact scenes' models, from their settings (nothing is solved).
+
+    Crossing: both ropes in one linkage, planar (two ropes crossing at a right
+    angle press along gravity), divided where they cross (the shear force jumps
+    there), frictionless statics, a rod-pair stiffness that sinks the ropes' weight
+    by 2e-3 of the radius. Capstan: the free rope on a planar free joint, damped
+    dynamics with friction against the cylinder (a capsule) on several divisions.
+    """
+    solver = SorojaxSolver()
+    s = solver.settings(crossing.scenario, n_elements=51, n_frames=3)
+    m = s["model"]
+    assert m["rods"] == [0, 1] and m["divisions"] == 2, m
+    assert m["method"] == "statics" and m["start_joint"] == "R", m
+    rod = crossing.scenario.rods[0]
+    weight = rod.material.density * rod.area * rod.length * 9.81
+    k = s["contact"]["rod_rod_stiffness_N_per_m"]
+    np.testing.assert_allclose(weight / k, 2e-3 * rod.radius, rtol=1e-9)
+
+    s = solver.settings(capstan.scenario, n_elements=100, n_frames=3)
+    m = s["model"]
+    assert m["method"] == "damped" and m["start_joint"] == "A", m
+    assert m["divisions"] == 10 and m["end_closure"] is None, m
+    assert s["contact"]["cylinder_friction"] == 0.3, s["contact"]

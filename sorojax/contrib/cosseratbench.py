@@ -120,6 +120,52 @@ SOLVER_ORDER = 5
 FRAME_CHUNK = 32
 """Frames integrated per compiled call (one call and one step-size start per chunk)."""
 
+PAIR_REACH = 0.2
+"""Rods whose centre lines start closer than this fraction of the shorter one's
+length are a contact pair."""
+
+PENETRATION = 2e-3
+"""Contact stiffness: the scene's load scale sinks this fraction of the radius."""
+
+SMOOTHING = 0.5
+"""The law's smoothing depth, a fraction of the target penetration."""
+
+STICK_VELOCITY = 1e-4
+"""Regularised friction's stick velocity [m/s]: a rope held at r of its friction
+limit creeps at about ``v r / sqrt(1 - r^2)``."""
+
+SPACING_RADII = 2.0
+"""Largest distance between contact samples against obstacles, in rod radii."""
+
+PAIR_SPACING_RADII = 8.0
+"""Largest distance between contact samples of rod pairs, in rod radii."""
+
+PILE_LAYERS = 4.0
+"""A floor carries up to this many layers of rope: its stiffness's load scale."""
+
+DIVISION_RULE = (10.0, 4, 16)
+"""Divisions of a rod in contact dynamics: ``clip(round(n_elements / a), lo, hi)``."""
+
+DIVISION_ORDER = 3
+"""Bending order per division in contact dynamics."""
+
+CONTACT_SOLVER = "ros34pw2"
+"""Integrator of contact dynamics: its W carries the obstacles' contact stiffness,
+damping and sticking friction, which would bound an explicit step."""
+
+CONTACT_SOLVER_ORDER = 3
+
+STIFFNESS_STAGES = (10.0, 1.0)
+"""Contact statics: the contact stiffness over these factors in turn, each solve
+starting from the last one's equilibrium."""
+
+TOUCH_TIMES = 3.0
+"""Rods of a contact statics first fall (damped) for this many times the free-fall
+time of their initial gap (:meth:`SorojaxSolver._touch`)."""
+
+STATICS_MAX_STEPS = 256
+"""Newton steps of a contact statics (its steps are shortened near contact)."""
+
 
 # --------------------------------------------------------------------------- plan
 @dataclasses.dataclass(frozen=True)
@@ -133,17 +179,29 @@ class _Plan:
     end_loop: str | None  # None S N P
     driven: bool  # end turned by a prescribed coordinate
     method: str  # "statics", "dynamics" or "damped"
+    cuts: tuple[float, ...] = ()  # inner division ends, fractions of the length
+
+    @property
+    def n_divisions(self) -> int:
+        """Divisions of the rod (one strain basis each)."""
+        return len(self.cuts) + 1
 
     @property
     def n_strain_dof(self) -> int:
         """Strain coordinates of the rod."""
-        return sum(o + 1 for m, o in zip(self.modes, self.orders, strict=True) if m)
+        per = sum(o + 1 for m, o in zip(self.modes, self.orders, strict=True) if m)
+        return per * self.n_divisions
 
     @property
     def n_dof(self) -> int:
         """All coordinates (joint, strains, the driven end's prescribed angle)."""
-        joint = {"N": 0, "R": 1, "S": 3, "A": 3, "F": 6}[self.start_joint]
+        joint = {"N": 0, "R": 1, "S": 3, "A": 3, "F": 6, "P": 1}[self.start_joint]
         return joint + self.n_strain_dof + int(self.driven)
+
+    @property
+    def edges(self) -> np.ndarray:
+        """Division ends as fractions of the length, 0 to 1."""
+        return np.asarray([0.0, *self.cuts, 1.0])
 
 
 def _unit(v) -> np.ndarray:
@@ -244,13 +302,53 @@ def _order(method: str, n_elements: int) -> int:
     return int(min(max(round(n_elements / divisor), lo), hi))
 
 
-def _plan(scenario: Scenario, rod: Rod, n_elements: int) -> _Plan:
-    """Choose the modes, orders, joints and solver for ``rod`` (see the module text)."""
-    if rod.start_motion is not None:
+def _start_direction(motion: Motion) -> np.ndarray:
+    """The fixed world direction a driven start moves along (no rotation)."""
+    r = np.asarray(motion.rotation, dtype=float)
+    d = np.asarray(motion.displacement, dtype=float)
+    if np.abs(r).max() > 0.0 or motion.slides_along is not None:
         raise NotImplementedError(
-            "Rod.start_motion: a driven start is outside this adapter's models (the "
-            "rod is rooted at its start); drive the end instead."
+            "a driven start that turns or slides is outside this adapter's models: "
+            "only a start moved along one fixed direction (a prismatic joint whose "
+            "coordinate is prescribed) is modelled."
         )
+    k = int(np.argmax(np.linalg.norm(d, axis=1)))
+    if np.linalg.norm(d[k]) == 0.0:
+        return np.array([0.0, 0.0, 1.0])
+    axis = _unit(d[k])
+    if np.abs(d - np.outer(d @ axis, axis)).max() > 1e-12:
+        raise NotImplementedError(
+            "a driven start whose direction of motion changes over time is outside "
+            "this adapter's models: give displacements along one fixed direction."
+        )
+    return axis
+
+
+def _plan(
+    scenario: Scenario,
+    rod: Rod,
+    n_elements: int,
+    *,
+    method: str | None = None,
+    planar_ok: bool = True,
+    cuts: tuple[float, ...] = (),
+    order: int | None = None,
+) -> _Plan:
+    """Choose the modes, orders, joints and solver for ``rod`` (see the module text).
+
+    ``method``, ``planar_ok`` (False: a 3D model even where the rod, its loads and
+    gravity lie in one plane), ``cuts`` (inner division ends) and ``order`` (the
+    bending order) are the contact scenes' choices (:func:`_scene_plans`).
+    """
+    drive_start = rod.start_motion is not None
+    if drive_start:
+        if rod.start is not EndCondition.CLAMPED:  # the scenario checks it too
+            raise NotImplementedError("Rod.start_motion needs a clamped start.")
+        if rod.end_motion is not None:
+            raise NotImplementedError(
+                "a rod driven at both ends is outside this adapter's models."
+            )
+        _start_direction(rod.start_motion)  # raises for what is not modelled
     p0, R0 = _frame(rod)
     pts = (np.asarray(rod.centerline, dtype=float) - p0) @ R0
     forces = [np.asarray(ld.force, dtype=float) @ R0 for ld in rod.loads]
@@ -264,7 +362,9 @@ def _plan(scenario: Scenario, rod: Rod, n_elements: int) -> _Plan:
     # ------------------------------------------------ planar? (plane holds local x)
     across = [v[1:] for v in (*pts[1:], *forces, gravity) if np.linalg.norm(v) > 0]
     normal_local = None
-    if not driven:
+    if drive_start:
+        across.append((_start_direction(rod.start_motion) @ R0)[1:])
+    if not driven and planar_ok:
         W = np.asarray(across).reshape(-1, 2)
         W = W[np.linalg.norm(W, axis=1) > 1e-12 * max(1.0, np.abs(W).max(initial=0))]
         if len(W) == 0:
@@ -302,11 +402,12 @@ def _plan(scenario: Scenario, rod: Rod, n_elements: int) -> _Plan:
         modes = (1, 1, 1, int(stretch), int(shear), int(shear))
 
     # ------------------------------------------------------------------ method
-    if driven:
+    if method is None and (driven or drive_start):
         method = "damped" if scenario.quasi_static else "dynamics"
-    else:
+    elif method is None:
         method = "statics" if scenario.quasi_static else "dynamics"
-    order = _order(method, n_elements)
+    if order is None:
+        order = _order(method, n_elements)
     # Torsion of a round rod without distributed moments is uniform at equilibrium
     # (Kirchhoff: the moment about the tangent is constant), so quasi-static scenes
     # give it one coordinate; stretch and shear get LOW_ORDER in dynamics.
@@ -320,7 +421,7 @@ def _plan(scenario: Scenario, rod: Rod, n_elements: int) -> _Plan:
 
     # ------------------------------------------------------------------- ends
     start = {
-        EndCondition.CLAMPED: "N",
+        EndCondition.CLAMPED: "P" if drive_start else "N",
         EndCondition.PINNED: "R" if planar else "S",
         EndCondition.FREE: "A" if planar else "F",
     }[rod.start]
@@ -332,7 +433,9 @@ def _plan(scenario: Scenario, rod: Rod, n_elements: int) -> _Plan:
         end_loop = "P"
     else:
         end_loop = "N"
-    return _Plan(modes, orders, normal_local, start, end_loop, driven, method)
+    return _Plan(
+        modes, orders, normal_local, start, end_loop, driven, method, tuple(cuts)
+    )
 
 
 # ------------------------------------------------------------------ initial shape
@@ -384,9 +487,9 @@ def _sample(sampler: sj.Linkage, q, nodes, mids):
 
 
 # ---------------------------------------------------------------------- hooks
-def _prescribed_angle(times, angles, t):
-    """The driven end's joint coordinate: minus the motion's angle, held after."""
-    return -jnp.interp(t, times, angles)[None]
+def _prescribed(times, values, t):
+    """A prescribed joint coordinate, piecewise linear in time, held after."""
+    return jnp.interp(t, times, values)[None]
 
 
 @functools.lru_cache(maxsize=32)
@@ -418,8 +521,57 @@ class _Model:
     mids: np.ndarray
     q0: jax.Array
     key: tuple
-    angles: np.ndarray | None  # (n_times,) driven end's angle samples
+    angles: np.ndarray | None  # (n_times,) the prescribed coordinate's samples
     times: np.ndarray | None
+    laws: object = None  # a contact scene's _Laws
+
+
+def _rod_link(rod: Rod, plan: _Plan, joint: sj.Joint | None = None) -> sj.SoftLink:
+    """The rod as a soft link: its divisions (``plan.cuts``), basis and start joint."""
+    m = rod.material
+    material = sj.Material(
+        E=m.youngs_modulus, poisson=_poisson(rod), rho=m.density, eta=0.0
+    )
+    basis = sj.LegendreBasis(plan.modes, plan.orders)
+    section = sj.CircularSection(rod.radius)
+    divisions = [
+        sj.Division(rod.length * float(b - a), section, basis)
+        for a, b in zip(plan.edges[:-1], plan.edges[1:], strict=True)
+    ]
+    if joint is None:
+        joint = _joint(plan.start_joint, plan.normal_local)
+    return sj.SoftLink(divisions, material, joint=joint)
+
+
+def _probes(link: int, plan: _Plan, n_elements: int) -> list[sj.PointWrench]:
+    """Zero point wrenches at the material nodes, then at the element middles."""
+    x_nodes = np.linspace(0.0, 1.0, n_elements + 1)
+    x_mids = (x_nodes[:-1] + x_nodes[1:]) / 2
+    edges = plan.edges
+    out = []
+    for x in np.concatenate([x_nodes, x_mids]):
+        k = int(np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2))
+        X1 = float(np.clip((x - edges[k]) / (edges[k + 1] - edges[k]), 0.0, 1.0))
+        out.append(sj.PointWrench(link, np.zeros(6), division=k + 1, X1=X1))
+    return out
+
+
+def _fitted(rod: Rod, rod_link: sj.SoftLink, plan: _Plan, n_elements: int):
+    """``(q_rod, g_end, sampler, nodes, mids)`` of the rod alone in its local frame.
+
+    ``q_rod`` fits the centre line's curvature and stretch, ``g_end`` is the end's
+    pose it gives; the sampler carries the probes of :func:`_probes`.
+    """
+    _, R0 = _frame(rod)
+    probes = _probes(1, plan, n_elements)
+    sampler = sj.Linkage([rod_link], point_wrenches=probes)
+    nodes = np.asarray([sampler.point_index(p) for p in probes[: n_elements + 1]])
+    mids = np.asarray([sampler.point_index(p) for p in probes[n_elements + 1 :]])
+    tables = _strain_tables(rod, R0)
+    strain = eqx.Partial(_tabulated_strain, *map(jnp.asarray, tables))
+    q_rod = _fit(sampler, strain)
+    _, _, g_end = _sample(sampler, q_rod, nodes, mids)
+    return q_rod, np.asarray(g_end), sampler, nodes, mids
 
 
 def _build(scenario: Scenario, rod: Rod, n_elements: int, plan: _Plan) -> _Model:
@@ -431,16 +583,8 @@ def _build(scenario: Scenario, rod: Rod, n_elements: int, plan: _Plan) -> _Model
     """
     p0, R0 = _frame(rod)
     m = rod.material
-    material = sj.Material(
-        E=m.youngs_modulus, poisson=_poisson(rod), rho=m.density, eta=0.0
-    )
-    basis = sj.LegendreBasis(plan.modes, plan.orders)
     L = rod.length
-    rod_link = sj.SoftLink(
-        sj.Division(L, sj.CircularSection(rod.radius), basis),
-        material,
-        joint=_joint(plan.start_joint, plan.normal_local),
-    )
+    rod_link = _rod_link(rod, plan)
     links = [rod_link]
     axis_local = None
     angles = times = None
@@ -448,23 +592,9 @@ def _build(scenario: Scenario, rod: Rod, n_elements: int, plan: _Plan) -> _Model
         motion = rod.end_motion
         axis = _motion_axis(motion)
         times = np.asarray(motion.times, dtype=float)
-        angles = np.asarray(motion.rotation, dtype=float) @ axis
-    # Sampling points: the material nodes and the element middles (X1 in [0, 1]).
-    x_nodes = np.linspace(0.0, 1.0, n_elements + 1)
-    x_mids = (x_nodes[:-1] + x_nodes[1:]) / 2
-    probes = [
-        sj.PointWrench(1, np.zeros(6), division=1, X1=float(x))
-        for x in np.concatenate([x_nodes, x_mids])
-    ]
-    # The fit and the end pose use the sampler of the rod alone.
-    sampler0 = sj.Linkage([rod_link], point_wrenches=probes)
-    nodes0 = np.asarray([sampler0.point_index(p) for p in probes[: n_elements + 1]])
-    mids0 = np.asarray([sampler0.point_index(p) for p in probes[n_elements + 1 :]])
-    tables = _strain_tables(rod, R0)
-    strain = eqx.Partial(_tabulated_strain, *map(jnp.asarray, tables))
-    q_rod = _fit(sampler0, strain)
-    _, _, g_end = _sample(sampler0, q_rod, nodes0, mids0)
-    g_end = np.asarray(g_end)
+        angles = -np.asarray(motion.rotation, dtype=float) @ axis
+    probes = _probes(1, plan, n_elements)
+    q_rod, g_end, sampler0, nodes0, mids0 = _fitted(rod, rod_link, plan, n_elements)
     if plan.driven:
         axis_local = R0.T @ axis
         a_end = g_end[:3, :3].T @ axis_local  # the axis in the end's frame
@@ -539,6 +669,386 @@ def _build(scenario: Scenario, rod: Rod, n_elements: int, plan: _Plan) -> _Model
     return _Model(plan, linkage, sampler, nodes0, mids0, q0, key, angles, times)
 
 
+# ------------------------------------------------------------ contact scenes
+def _pairs(scenario: Scenario) -> list[tuple[int, int]]:
+    """Pairs of rods (0-based) modelled in rod-rod contact.
+
+    Rods whose centre lines start closer than :data:`PAIR_REACH` of the shorter
+    one's length; rods further apart (the twist scene's, 0.25 lengths) are left
+    independent.
+    """
+    out = []
+    rods = scenario.rods
+    for a in range(len(rods)):
+        for b in range(a + 1, len(rods)):
+            pa = np.asarray(rods[a].centerline, dtype=float)
+            pb = np.asarray(rods[b].centerline, dtype=float)
+            gap = _polyline_gap(pa, pb)
+            if gap < PAIR_REACH * min(rods[a].length, rods[b].length):
+                out.append((a, b))
+    return out
+
+
+def _to_polyline(x: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Distance of each point ``x`` (n, 3) to the polyline ``p`` (m, 3)."""
+    a, b = p[:-1], p[1:]
+    ab = b - a
+    t = np.einsum("nij,ij->ni", x[:, None] - a[None], ab)
+    t = np.clip(t / np.maximum(np.sum(ab * ab, axis=1), 1e-300), 0.0, 1.0)
+    c = a[None] + t[..., None] * ab[None]
+    return np.linalg.norm(x[:, None] - c, axis=2).min(axis=1)
+
+
+def _polyline_gap(pa: np.ndarray, pb: np.ndarray) -> float:
+    """Smallest distance between two polylines (their vertices against segments)."""
+    return float(min(_to_polyline(pa, pb).min(), _to_polyline(pb, pa).min()))
+
+
+def _nearest_fraction(pa: np.ndarray, arc: np.ndarray, pb: np.ndarray) -> float:
+    """Fraction of rod a's rest length at its vertex nearest rod b's centre line."""
+    return float(arc[int(np.argmin(_to_polyline(pa, pb)))] / arc[-1])
+
+
+def _is_contact_scene(scenario: Scenario) -> bool:
+    """Whether the scene takes the contact path (:func:`_build_scene`)."""
+    return bool(
+        scenario.obstacles
+        or any(rod.start_motion is not None for rod in scenario.rods)
+        or _pairs(scenario)
+    )
+
+
+def _frictional(scenario: Scenario) -> bool:
+    rod_mu = max((rod.friction for rod in scenario.rods), default=0.0)
+    touching_rods = bool(_pairs(scenario)) or scenario.self_contact
+    return any(ob.friction > 0 for ob in scenario.obstacles) or (
+        touching_rods and rod_mu > 0
+    )
+
+
+def _planar_with(scenario: Scenario, n: np.ndarray, others: list) -> bool:
+    """Whether a rod's plane (world normal ``n``) keeps every contact force in it.
+
+    A cylinder whose axis is the plane's normal, a plane whose normal lies in it;
+    rod pairs (``others``: the other rods' plane normals, None when 3D) of
+    perpendicular planes that both hold gravity (two ropes crossing at a right
+    angle press along gravity, by symmetry).
+    """
+    for ob in scenario.obstacles:
+        if ob.kind == "cylinder" and abs(abs(float(n @ ob.unit_axis)) - 1.0) > 1e-9:
+            return False
+        if ob.kind == "plane" and abs(float(n @ ob.unit_normal)) > 1e-9:
+            return False
+    g = np.asarray(scenario.gravity, dtype=float)
+    for m in others:
+        if m is None or not np.linalg.norm(g) > 0:
+            return False
+        if abs(float(n @ g)) > 1e-9 * np.linalg.norm(g) or abs(float(n @ m)) > 1e-9:
+            return False
+    return True
+
+
+def _scene_plans(scenario: Scenario, n_elements: int) -> list[_Plan]:
+    """The rods' plans in a contact scene (see the module text)."""
+    rods = scenario.rods
+    drive = any(r.start_motion is not None or r.end_motion is not None for r in rods)
+    if not scenario.quasi_static:
+        method = "dynamics"
+    elif drive or _frictional(scenario):
+        method = "damped"
+    else:  # frictionless, constant loads: what statics models
+        method = "statics"
+    pairs = _pairs(scenario)
+    cuts: list[tuple[float, ...]] = [() for _ in rods]
+    order = None
+    if method == "statics":
+        # a rod pressed by another at a point: the shear force jumps there, so a
+        # division ends there
+        for a, b in pairs:
+            pa, pb = (np.asarray(rods[i].centerline, dtype=float) for i in (a, b))
+            for i, x, y in ((a, pa, pb), (b, pb, pa)):
+                f = _nearest_fraction(x, _rest_arc(rods[i]), y)
+                if 0.05 < f < 0.95:
+                    cuts[i] = tuple(sorted({*cuts[i], round(f, 12)}))
+    else:
+        # several divisions of a low order: a rope wrapped on an obstacle bends
+        # sharply where it leaves it, and that place moves along the rope as it
+        # slides
+        per, lo, hi = DIVISION_RULE
+        n_div = int(min(max(round(n_elements / per), lo), hi))
+        cuts = [tuple(np.arange(1, n_div) / n_div) for _ in rods]
+        order = DIVISION_ORDER
+    plans = [
+        _plan(scenario, rod, n_elements, method=method, cuts=c, order=order)
+        for rod, c in zip(rods, cuts, strict=True)
+    ]
+    normals = [
+        None
+        if plan.normal_local is None
+        else _frame(rod)[1] @ np.asarray(plan.normal_local)
+        for rod, plan in zip(rods, plans, strict=True)
+    ]
+    out = []
+    for i, (rod, plan) in enumerate(zip(rods, plans, strict=True)):
+        others = [normals[b if a == i else a] for a, b in pairs if i in (a, b)]
+        if normals[i] is not None and not _planar_with(scenario, normals[i], others):
+            plan = _plan(
+                scenario,
+                rod,
+                n_elements,
+                method=method,
+                planar_ok=False,
+                cuts=plan.cuts,
+                order=order,
+            )
+        out.append(plan)
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class _Laws:
+    """The contact laws of a scene and the numbers behind them (for ``settings``)."""
+
+    pair: sj.ContactLaw | None
+    obstacles: tuple[sj.ContactLaw, ...]
+    info: dict
+
+
+def _laws(scenario: Scenario, method: str, spacing: float) -> _Laws:
+    """Contact laws sized from the scene's loads (see :data:`PENETRATION`).
+
+    Obstacles (per unit length): the stiffness that holds the rope's weight per
+    length, times ``1 + L / R`` on a cylinder of radius R (the tension of a rope
+    hanging over it presses ``T / R``), at :data:`PENETRATION` of the rope's radius.
+    Rod pairs and self-contact (per point): the lighter rod's weight at that
+    penetration. Damping is critical for a sample's mass; friction is the larger of
+    the two coefficients, static and kinetic alike (the benchmark's Coulomb law).
+    """
+    rods = scenario.rods
+    g = float(np.linalg.norm(scenario.gravity)) or 1.0
+    pen = PENETRATION
+    r_min = min(rod.radius for rod in rods)
+    mass_len = min(rod.material.density * rod.area for rod in rods)
+    weight = min(rod.material.density * rod.area * rod.length * g for rod in rods)
+    loads = max(
+        (float(np.linalg.norm(ld.force)) for rod in rods for ld in rod.loads),
+        default=0.0,
+    )
+    rod_mu = max((rod.friction for rod in rods), default=0.0)
+    v_s = STICK_VELOCITY
+    info: dict = {"target_penetration": f"{pen:g} of the rod radius"}
+    pair = None
+    if _pairs(scenario) or scenario.self_contact:
+        k = (weight + loads) / (pen * r_min)
+        m_pt = mass_len * spacing
+        pair = sj.ContactLaw(
+            stiffness=k,
+            smoothing=SMOOTHING * pen * r_min,
+            damping=2.0 * math.sqrt(k * m_pt),
+            static_friction=rod_mu,
+            stick_velocity=v_s,
+        )
+        info["rod_rod_stiffness_N_per_m"] = k
+        info["rod_rod_friction"] = rod_mu
+    obstacle_laws = []
+    for ob in scenario.obstacles:
+        L = max(rod.length for rod in rods)
+        w_len = mass_len * g
+        if ob.kind == "cylinder":
+            f = w_len * (1.0 + L / ob.radius)
+        else:
+            f = w_len * PILE_LAYERS
+        k = f / (pen * r_min)
+        mu = max(ob.friction, rod_mu)
+        obstacle_laws.append(
+            sj.ContactLaw(
+                stiffness=k,
+                smoothing=SMOOTHING * pen * r_min,
+                damping=2.0 * math.sqrt(k * mass_len),
+                static_friction=mu,
+                stick_velocity=v_s,
+            )
+        )
+        info[f"{ob.kind}_stiffness_N_per_m2"] = k
+        info[f"{ob.kind}_friction"] = mu
+    if method != "statics" and _frictional(scenario):
+        info["stick_velocity_m_per_s"] = v_s
+    info["smoothing_m"] = SMOOTHING * pen * r_min
+    info["sample_spacing_m"] = spacing
+    return _Laws(pair, tuple(obstacle_laws), info)
+
+
+def _spacing(scenario: Scenario) -> float:
+    """Largest distance between contact samples.
+
+    :data:`SPACING_RADII` rod radii against obstacles, :data:`PAIR_SPACING_RADII`
+    with rod pairs (their cost grows as the square of the samples; ropes crossing
+    at an angle touch at a point).
+    """
+    radii = PAIR_SPACING_RADII if _pairs(scenario) else SPACING_RADII
+    return radii * min(rod.radius for rod in scenario.rods)
+
+
+def _obstacle(ob) -> sj.AbstractObstacle:
+    if ob.kind == "plane":
+        return sj.Plane(point=tuple(ob.point), normal=tuple(ob.unit_normal))
+    half = ob.unit_axis * ob.length / 2
+    c = np.asarray(ob.center, dtype=float)
+    return sj.Capsule(ob.radius, start=tuple(c - half), end=tuple(c + half))
+
+
+def _build_scene(scenario: Scenario, n_elements: int, plans: list[_Plan]) -> _Model:
+    """All rods of a contact scene in one linkage (world frame) and its sampler.
+
+    Each rod is a link on the ground (``parents`` 0) placed at its start frame, so
+    that rod pairs, self-contact and obstacles are one contact set. Nodes and
+    middles of rod ``i`` are the ``i``-th blocks of ``nodes`` and ``mids``.
+    """
+    rods = scenario.rods
+    links, placements, probes, loads, loops, q0s = [], [], [], [], [], []
+    actuators, values, vtimes = [], None, None
+    spacing = _spacing(scenario)
+    for i, (rod, plan) in enumerate(zip(rods, plans, strict=True), start=1):
+        if plan.driven:
+            raise NotImplementedError(
+                "a driven end in a scene with contact is outside this adapter's models."
+            )
+        p0, R0 = _frame(rod)
+        G0 = np.eye(4)
+        G0[:3, :3], G0[:3, 3] = R0, p0
+        joint = None
+        if plan.start_joint == "P":
+            motion = rod.start_motion
+            axis = _start_direction(motion)
+            joint = sj.Joint("P", axis=tuple(R0.T @ axis))
+            if values is not None:
+                raise NotImplementedError("more than one driven start")
+            vtimes = np.asarray(motion.times, dtype=float)
+            values = np.asarray(motion.displacement, dtype=float) @ axis
+            actuators.append(sj.JointActuator(i, prescribed=True))
+        link = _rod_link(rod, plan, joint)
+        q_rod, g_end, *_ = _fitted(rod, link, plan, n_elements)
+        links.append(link)
+        placements.append(G0)
+        q0s.append(np.asarray(q_rod))
+        probes += _probes(i, plan, n_elements)
+        for ld in rod.loads:
+            w = np.concatenate([np.zeros(3), np.asarray(ld.force, dtype=float)])
+            if ld.at is End.END:
+                loads.append(sj.PointWrench(i, w))
+            elif rod.start is EndCondition.FREE:
+                loads.append(sj.PointWrench(i, w, division=1, X1=0.0))
+        if plan.end_loop is not None:
+            loops.append(
+                sj.ClosedLoopJoint(plan.end_loop, link_A=i, link_B=0, g_B=G0 @ g_end)
+            )
+    laws = _laws(scenario, plans[0].method, spacing)
+    n_rods = len(rods)
+    pairs = [(a + 1, b + 1) for a, b in _pairs(scenario)]
+    selfc = tuple(range(1, n_rods + 1)) if scenario.self_contact else ()
+    law = laws.pair if laws.pair is not None else laws.obstacles[0]
+    contact = sj.Contact(
+        tuple(_obstacle(ob) for ob in scenario.obstacles),
+        law,
+        links=tuple(range(1, n_rods + 1)) if scenario.obstacles else (),
+        spacing=spacing,
+        rod_pairs=pairs,
+        self_contact=selfc,
+        friction_in_rod_pairs=bool(laws.pair is not None)
+        and float(laws.pair.static_friction) > 0,
+        obstacle_laws=dict(enumerate(laws.obstacles)),
+    )
+    placements = np.stack(placements)
+    parents = (0,) * n_rods
+    gravity = np.asarray(scenario.gravity, dtype=float)
+    hook = None
+    rate = 0.0
+    if plans[0].method == "damped":
+        rate = 2.0 * scenario.slowest_frequency()
+        layout = sj.Linkage(
+            links,
+            parents=parents,
+            placements=placements,
+            point_wrenches=loads,
+            contact=contact,
+        ).layout  # the contact samples are points too
+        per_point = []
+        for kind, lk in zip(layout.point_kind, layout.point_link, strict=True):
+            if kind == ROD:
+                rod = rods[lk - 1]
+                A, Iy, Iz, Ip = map(
+                    float, sj.CircularSection(rod.radius).properties(0.0)
+                )
+                rho = rod.material.density
+                per_point.append(tuple(rho * v for v in (Ip, Iy, Iz, A, A, A)))
+            else:
+                per_point.append((0.0,) * 6)
+        hook = _mass_damping_points(rate, tuple(per_point))
+    linkage = sj.Linkage(
+        links,
+        parents=parents,
+        placements=placements,
+        gravity=gravity,
+        point_wrenches=loads,
+        closed_loops=loops,
+        actuators=actuators,
+        custom_wrench=hook,
+        contact=contact,
+    )
+    sampler = sj.Linkage(
+        links, parents=parents, placements=placements, point_wrenches=probes
+    )
+    n1 = n_elements + 1
+    idx = [sampler.point_index(p) for p in probes]
+    nodes, mids = [], []
+    per_rod = n1 + n_elements
+    for k in range(n_rods):
+        block = idx[k * per_rod : (k + 1) * per_rod]
+        nodes += block[:n1]
+        mids += block[n1:]
+    q0 = jnp.asarray(np.concatenate(q0s))
+    key = ("scene", id(linkage))
+    return _Model(
+        plans[0],
+        linkage,
+        sampler,
+        np.asarray(nodes),
+        np.asarray(mids),
+        q0,
+        key,
+        values,
+        vtimes,
+        laws,
+    )
+
+
+def _softened(linkage: sj.Linkage, factor: float) -> sj.Linkage:
+    """``linkage`` with its contact stiffnesses divided by ``factor``."""
+    if factor == 1.0 or linkage.contact is None:
+        return linkage
+    c = linkage.contact
+
+    def soften(law):
+        return eqx.tree_at(lambda lw: lw.stiffness, law, law.stiffness / factor)
+
+    return eqx.tree_at(
+        lambda lk: (lk.contact.law, lk.contact.obstacle_laws),
+        linkage,
+        (soften(c.law), tuple(soften(lw) for lw in c.obstacle_laws)),
+    )
+
+
+@functools.lru_cache(maxsize=32)
+def _mass_damping_points(rate: float, per_point: tuple[tuple[float, ...], ...]):
+    """Hook ``-rate M_s eta`` with a section inertia per point (0 off the rods)."""
+    M = np.asarray(per_point, dtype=float)
+
+    def hook(t, q, qd, kin):
+        return -rate * kin.eta * jnp.asarray(M, dtype=kin.eta.dtype)
+
+    return hook
+
+
 def _joint(kind: str, normal_local) -> sj.Joint:
     if kind in ("R", "A"):
         return sj.Joint(kind, axis=normal_local)
@@ -573,7 +1083,7 @@ def _advance(
     n = linkage.n_dof
 
     def one(y_, angles_):
-        u = None if angles_ is None else eqx.Partial(_prescribed_angle, times, angles_)
+        u = None if angles_ is None else eqx.Partial(_prescribed, times, angles_)
         tr = sj.simulate(
             linkage,
             ts[-1],
@@ -614,7 +1124,16 @@ class SorojaxSolver:
     """
 
     name = "sorojax"
-    capabilities = frozenset({Capability.STRETCH, Capability.SHEAR})
+    capabilities = frozenset(
+        {
+            Capability.STRETCH,
+            Capability.SHEAR,
+            Capability.ROD_CONTACT,
+            Capability.ROD_FRICTION,
+            Capability.CYLINDER_CONTACT,
+            Capability.PLANE_CONTACT,
+        }
+    )
     backend_version = sj.__version__
 
     def __init__(self, time_step_scale: float = 1.0):
@@ -626,7 +1145,10 @@ class SorojaxSolver:
         self.time_step_scale = float(time_step_scale)
 
     # ------------------------------------------------------------------ settings
-    def _tolerances(self) -> tuple[str, float, float]:
+    def _tolerances(self, contact: bool = False) -> tuple[str, float, float]:
+        if contact:
+            rtol = SOLVER_RTOL * self.time_step_scale**CONTACT_SOLVER_ORDER
+            return CONTACT_SOLVER, rtol, ATOL_FACTOR * rtol
         rtol = SOLVER_RTOL * self.time_step_scale**SOLVER_ORDER
         return DYNAMIC_SOLVER, rtol, ATOL_FACTOR * rtol
 
@@ -644,7 +1166,11 @@ class SorojaxSolver:
             A dict: model (modes, orders, DoF, joints), solver and its tolerances,
             damping.
         """
-        plans = [_plan(scenario, rod, n_elements) for rod in scenario.rods]
+        contact = _is_contact_scene(scenario)
+        if contact:
+            plans = _scene_plans(scenario, n_elements)
+        else:
+            plans = [_plan(scenario, rod, n_elements) for rod in scenario.rods]
         out: dict[str, object] = {}
         distinct = list(dict.fromkeys(plans))
         for k, plan in enumerate(distinct):
@@ -659,6 +1185,7 @@ class SorojaxSolver:
                     if f
                 },
                 "basis": "Legendre",
+                "divisions": plan.n_divisions,
                 "n_dof": plan.n_dof,
                 "start_joint": plan.start_joint,
                 "end_closure": plan.end_loop,
@@ -669,7 +1196,7 @@ class SorojaxSolver:
                 entry["solver"] = "solve_statics (Newton, rtol=atol=1e-10)"
                 entry["if_unstable"] = "damped dynamics (mass-proportional)"
             else:
-                solver, rtol, atol = self._tolerances()
+                solver, rtol, atol = self._tolerances(contact)
                 entry.update(solver=solver, rtol=rtol, atol=atol, adaptive=True)
             if plan.method == "damped":
                 entry["damping"] = "mass-proportional"
@@ -677,6 +1204,9 @@ class SorojaxSolver:
             else:
                 entry["damping"] = "none"
             out[f"model{k}" if len(distinct) > 1 else "model"] = entry
+        if contact:
+            out["model_layout"] = "all rods in one linkage, each on the ground"
+            out["contact"] = _laws(scenario, plans[0].method, _spacing(scenario)).info
         out["time_step_scale"] = self.time_step_scale
         return out
 
@@ -697,10 +1227,10 @@ class SorojaxSolver:
                 displaced end, obstacles, Poisson ratio above 0.5).
             cosseratbench.Diverged: a solve failed or gave non-finite values.
         """
-        if scenario.obstacles:
-            raise NotImplementedError("obstacles (contact) are not modelled by sorojax")
         times = np.linspace(0.0, scenario.duration, n_frames)
         rods = scenario.rods
+        if _is_contact_scene(scenario):
+            return self._run_scene(scenario, n_elements, times)
         with jax.enable_x64(True):
             models = [
                 _build(scenario, rod, n_elements, _plan(scenario, rod, n_elements))
@@ -729,12 +1259,89 @@ class SorojaxSolver:
                     directors[i] = d1 @ R0.T
         return Trajectory(times, tuple(positions), tuple(directors))
 
-    def _statics(self, mdl: _Model, scenario: Scenario, n_frames: int):
+    def _run_scene(self, scenario: Scenario, n_elements: int, times) -> Trajectory:
+        """A contact scene: all rods in one linkage (:func:`_build_scene`)."""
+        rods = scenario.rods
+        n1 = n_elements + 1
+        with jax.enable_x64(True):
+            plans = _scene_plans(scenario, n_elements)
+            mdl = _build_scene(scenario, n_elements, plans)
+            out = None
+            if plans[0].method == "statics":
+                q = self._touch(scenario, n_elements, plans, mdl)
+                out = self._statics(mdl, scenario, len(times), STATICS_MAX_STEPS, q)
+                if out is None:  # unstable: the damped dynamics finds a stable one
+                    plans = [dataclasses.replace(p, method="damped") for p in plans]
+                    mdl = _build_scene(scenario, n_elements, plans)
+            if out is None:
+                out = self._dynamics([mdl], [0], times, contact=True)[0]
+        pos, d1 = out
+        return Trajectory(
+            times,
+            tuple(pos[:, k * n1 : (k + 1) * n1] for k in range(len(rods))),
+            tuple(
+                d1[:, k * n_elements : (k + 1) * n_elements] for k in range(len(rods))
+            ),
+        )
+
+    def _touch(self, scenario: Scenario, n_elements: int, plans, mdl: _Model):
+        """Coordinates after the rods of a contact statics have come into contact.
+
+        Rods that start apart and settle onto each other: Newton's method from the
+        start sees no contact in its tangent and can step the rods through each
+        other, so the same model, damped (mass-proportional, the quasi-static
+        dynamics), first falls for :data:`TOUCH_TIMES` times the free-fall time of
+        the initial gap; the statics starts there, in contact.
+        """
+        if not _pairs(scenario):
+            return mdl.q0
+        rods = scenario.rods
+        gap = min(
+            _polyline_gap(
+                np.asarray(rods[a].centerline, float),
+                np.asarray(rods[b].centerline, float),
+            )
+            - rods[a].radius
+            - rods[b].radius
+            for a, b in _pairs(scenario)
+        )
+        g = float(np.linalg.norm(scenario.gravity))
+        if gap <= 0 or g == 0:
+            return mdl.q0
+        t1 = TOUCH_TIMES * math.sqrt(2.0 * gap / g)
+        damped = [dataclasses.replace(p, method="damped") for p in plans]
+        dmdl = _build_scene(scenario, n_elements, damped)
+        ts = np.linspace(0.0, t1, FRAME_CHUNK + 1)
+        (pos, _), y = self._dynamics([dmdl], [0], ts, contact=True, state=True)
+        return jnp.asarray(y[0, : mdl.linkage.n_dof])
+
+    def _statics(
+        self,
+        mdl: _Model,
+        scenario: Scenario,
+        n_frames: int,
+        max_steps: int = 64,
+        q0=None,
+    ):
         """``(positions, d1)`` of the initial shape then the equilibrium, or None.
 
         None when the equilibrium Newton's method found is unstable.
         """
-        sol = sj.solve_statics(mdl.linkage, mdl.q0, throw=False, warn_unstable=False)
+        q = mdl.q0 if q0 is None else q0
+        stages = STIFFNESS_STAGES if mdl.laws is not None else (1.0,)
+        for soft in stages:
+            # a contact stiffness continuation: each Newton solve starts in contact,
+            # from the softer law's equilibrium (the law's numbers are arrays: one
+            # compiled program serves every stage)
+            sol = sj.solve_statics(
+                _softened(mdl.linkage, soft),
+                q,
+                throw=False,
+                warn_unstable=False,
+                max_steps=max_steps,
+                load_steps=None if mdl.laws is None else 1,
+            )
+            q = sol.q
         if not (sol.result == sj.RESULTS.successful) or not np.all(np.isfinite(sol.q)):
             raise Diverged(
                 "sorojax.solve_statics did not converge (scaled residual "
@@ -754,13 +1361,18 @@ class SorojaxSolver:
         )
         return pos, d
 
-    def _dynamics(self, models, members, times):
+    def _dynamics(
+        self, models, members, times, contact: bool = False, state: bool = False
+    ):
         mdl = models[members[0]]
-        solver, rtol, atol = self._tolerances()
+        # ROS34PW2's W carries obstacle contacts only: rods touching each other
+        # alone run the explicit default
+        obstacles = contact and bool(mdl.linkage.contact.obstacles)
+        solver, rtol, atol = self._tolerances(obstacles)
         n = mdl.linkage.n_dof
         B = len(members)
         y = jnp.tile(jnp.concatenate([mdl.q0, jnp.zeros(n)])[None], (B, 1))
-        if mdl.plan.driven:
+        if mdl.angles is not None:
             angles = jnp.asarray(np.stack([models[i].angles for i in members]))
             mtimes = jnp.asarray(mdl.times)
         else:
@@ -799,4 +1411,5 @@ class SorojaxSolver:
                 np.asarray(p[:, :m]),
                 np.asarray(d[:, :m]),
             )
-        return [(pos[b], dirs[b]) for b in range(B)]
+        out = [(pos[b], dirs[b]) for b in range(B)]
+        return (out[0], y) if state else out
