@@ -804,6 +804,42 @@ def _finite(obj):
     return obj
 
 
+def merge(folders, out):
+    """One ``adequacy.{csv,json,png}`` from the runs in ``folders`` (scene order)."""
+    metas = [json.loads((f / "adequacy.json").read_text()) for f in folders]
+    rows, fields = [], []
+    for f in folders:
+        with open(f / "adequacy.csv") as fh:
+            reader = csv.DictReader(fh)
+            fields += [k for k in reader.fieldnames if k not in fields]
+            rows += list(reader)
+    order = {name: k for k, name in enumerate(SCENES)}
+    rows.sort(key=lambda r: order[r["scene"]])
+    scenes = sorted(
+        (sc for m in metas for sc in m["scenes"]), key=lambda sc: order[sc["scene"]]
+    )
+    meta = dict(metas[0])
+    meta["environment"] = dict(
+        metas[0]["environment"], scenes=[sc["scene"] for sc in scenes]
+    )
+    meta["runs"] = [
+        {"scenes": m["environment"]["scenes"], "total_s": m["total_s"]} for m in metas
+    ]
+    meta["total_s"] = max(m["total_s"] for m in metas)
+    meta["failed_points"] = [p for m in metas for p in m["failed_points"]]
+    meta["scenes"] = scenes
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / "adequacy.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=fields)
+        w.writeheader()
+        w.writerows(rows)
+    (out / "adequacy.json").write_text(json.dumps(meta, indent=2))
+    plot(_read_csv(out / "adequacy.csv"), out / "adequacy.png")
+    print(f"Merged {len(scenes)} scenes into {out}; failed points:")
+    for p in meta["failed_points"]:
+        print("  ", p)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument(
@@ -820,9 +856,20 @@ def main(argv=None):
         action="store_true",
         help="redraw adequacy.png from the CSV in --out (no solves)",
     )
+    ap.add_argument(
+        "--merge",
+        nargs="*",
+        type=Path,
+        default=None,
+        help="merge the results of runs in these folders (e.g. one scene each, run"
+        " in parallel) into --out (no solves)",
+    )
     args = ap.parse_args(argv)
     if args.plot_only:
         plot(_read_csv(args.out / "adequacy.csv"), args.out / "adequacy.png")
+        return
+    if args.merge:
+        merge(args.merge, args.out)
         return
     names = args.scenes or (list(QUICK_SCENES) if args.quick else list(SCENES))
     kmax = args.kmax if args.kmax is not None else (10 if args.quick else 16)

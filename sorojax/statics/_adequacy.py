@@ -900,7 +900,8 @@ def _check_sensitive(ref_qoi, tangent, q_ref, index, orders_ref, state_ref, mode
 
     A quantity other than the default is compared with the configuration on
     Galerkin candidates of the reference: uniform orders 0-3 of ``modes`` and the
-    reference one to four orders down. A candidate is blind to the quantity when
+    reference one to four orders down, those within 0.1 (relative) of the
+    reference on the configuration. A candidate is blind to the quantity when
     it changes by at most ``INSENSITIVE`` times the configuration's change ``e``,
     or by at most ``e^2`` (the proxy's own second-order error: a tip held by a
     closed loop is exact in every solved model but moves by ``~e^2`` in the
@@ -927,12 +928,15 @@ def _check_sensitive(ref_qoi, tangent, q_ref, index, orders_ref, state_ref, mode
     stacked = _stack(states)
     e_q = ref_qoi.errors(*stacked, *state_ref)
     e_c = conf.errors(*stacked, *state_ref)
-    blind = e_q <= np.maximum(INSENSITIVE * e_c, e_c**2)
-    if e_c.max() > 0 and np.all(blind):
+    # candidates off by more than 10 % are outside the linearisation's reach
+    near = e_c <= 0.1
+    blind = e_q[near] <= np.maximum(INSENSITIVE * e_c[near], e_c[near] ** 2)
+    if near.any() and e_c[near].max() > 0 and np.all(blind):
         warnings.warn(
             f"choose_model: the quantity of interest {ref_qoi.name!r} changes by at "
-            f"most {e_q.max():.1e} (relative) between the reference and smaller "
-            f"models, where the configuration changes by up to {e_c.max():.1e}: "
+            f"most {e_q[near].max():.1e} (relative) between the reference and "
+            f"smaller models, where the configuration changes by up to "
+            f"{e_c[near].max():.1e}: "
             "it cannot tell the models apart (the smallest model would pass). The "
             "choice is made on the whole configuration (quantity='configuration') "
             "instead.",
