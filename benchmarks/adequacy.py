@@ -739,7 +739,7 @@ def plot(rows, path):
         ax.set_ylabel("true error (configuration distance / L)")
         ax.grid(True, which="both", alpha=0.25)
     axes[0].set_xlabel("DoF")
-    axes[1].set_xlabel("warm solve_statics time [ms] (2-core CPU)")
+    axes[1].set_xlabel("warm solve_statics time [ms] (CPU)")
     axes[0].set_title(
         "error vs DoF: uniform orders (solid: scene modes, dashed: all six)"
         "\nadaptive: o tol 1e-3, * tol 1e-5",
