@@ -363,6 +363,11 @@ def main() -> None:
     p.add_argument("--out", type=Path, default=OUT)
     p.add_argument("--force", action="store_true", help="rerun runs already saved")
     p.add_argument("--keep-trajectories", action="store_true")
+    p.add_argument(
+        "--no-run",
+        action="store_true",
+        help="only rebuild the tables, summary and figure from the saved runs",
+    )
     args = p.parse_args()
 
     args.out = args.out.resolve()
@@ -372,8 +377,12 @@ def main() -> None:
     here = Path.cwd()
     os.chdir(args.out)  # MuJoCo writes MUJOCO_LOG.TXT into the working folder
     try:
-        totals = _run(
-            args.experiments, args.solvers, args.vary_solvers, args.out, args.force
+        totals = (
+            {}
+            if args.no_run
+            else _run(
+                args.experiments, args.solvers, args.vary_solvers, args.out, args.force
+            )
         )
     finally:
         os.chdir(here)

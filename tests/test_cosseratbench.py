@@ -109,15 +109,15 @@ def test_contact_scenes_model_choices():
 
     Crossing: both ropes in one linkage, planar (two ropes crossing at a right
     angle press along gravity), divided where they cross (the shear force jumps
-    there), frictionless statics, a rod-pair stiffness that sinks the ropes' weight
-    by 2e-3 of the radius. Capstan: the free rope on a planar free joint, damped
+    there), settled by the damped dynamics, a rod-pair stiffness that sinks the
+    ropes' weight by 2e-3 of the radius. Capstan: the free rope on a planar free joint, damped
     dynamics with friction against the cylinder (a capsule) on several divisions.
     """
     solver = SorojaxSolver()
     s = solver.settings(crossing.scenario, n_elements=51, n_frames=3)
     m = s["model"]
     assert m["rods"] == [0, 1] and m["divisions"] == 2, m
-    assert m["method"] == "statics" and m["start_joint"] == "R", m
+    assert m["method"] == "damped" and m["start_joint"] == "R", m
     rod = crossing.scenario.rods[0]
     weight = rod.material.density * rod.area * rod.length * 9.81
     k = s["contact"]["rod_rod_stiffness_N_per_m"]

@@ -4,8 +4,9 @@
 solves it and samples the solution at the benchmark's material nodes. The benchmark
 finds it through the entry point ``cosseratbench.solvers: sorojax`` (pyproject.toml);
 this module is loaded only then, or by its test, so it imports cosseratbench at the
-top. What is not modelled (contact, a driven start, a displaced driven end, a Poisson
-ratio above 0.5) raises ``NotImplementedError`` (reported "unsupported").
+top. What is not modelled (dense self-contact, a displaced driven end, a turning
+driven start, a Poisson ratio above 0.5) raises ``NotImplementedError`` (reported
+"unsupported").
 
 Model per rod (from the scenario's physics; :meth:`SorojaxSolver.settings` reports it):
 
@@ -46,6 +47,22 @@ Solvers:
   scenario.slowest_frequency()`` (the benchmark's built-in adapters' choice, which
   its twist measurement assumes);
 - dynamic scenes: :func:`sorojax.simulate` with no added damping.
+
+Contact scenes (obstacles, rods that start near each other, a driven start) put
+all rods in one linkage, each rod a link on the ground placed at its start frame,
+with one :class:`sorojax.Contact`: cosseratbench's cylinders become capsules of its
+length, planes stay planes, rods closer than :data:`PAIR_REACH` are a rod pair; a
+driven start is a prismatic joint whose coordinate is prescribed. Contact laws are
+sized from the scene's loads (:func:`_laws`: stiffness for :data:`PENETRATION`,
+critical damping, the larger friction coefficient, static and kinetic alike).
+Frictionless quasi-static scenes (crossing) first fall, damped, into contact
+(:meth:`SorojaxSolver._touch`), then solve the statics with a contact-stiffness
+continuation (:data:`STIFFNESS_STAGES`); a rod pressed by another is divided
+where it touches. Frictional ones (capstan) run the damped dynamics with ROS34PW2
+(its W carries the obstacle contact and sticking friction) on
+:data:`DIVISION_RULE` divisions of order :data:`DIVISION_ORDER`. A rod in a
+contact scene keeps a planar model only where every contact force stays in its
+plane.
 
 Dynamics run ``FRAME_CHUNK`` frames per call of one compiled program whose shapes
 depend on neither ``duration`` nor ``n_frames`` (times are traced, a last chunk
@@ -154,6 +171,13 @@ CONTACT_SOLVER = "ros34pw2"
 damping and sticking friction, which would bound an explicit step."""
 
 CONTACT_SOLVER_ORDER = 3
+
+CONTACT_STATICS = False
+"""Whether frictionless quasi-static contact scenes use the contact statics (a
+damped fall into contact, then Newton with a stiffness continuation). Off: from
+that fall Newton's method did not converge on the crossing ropes at n = 51
+(scaled residual 1.5 after 256 steps), so they settle by the damped dynamics of
+the same model (orders and divisions of the statics) instead."""
 
 STIFFNESS_STAGES = (10.0, 1.0)
 """Contact statics: the contact stiffness over these factors in turn, each solve
@@ -778,6 +802,10 @@ def _scene_plans(scenario: Scenario, n_elements: int) -> list[_Plan]:
         n_div = int(min(max(round(n_elements / per), lo), hi))
         cuts = [tuple(np.arange(1, n_div) / n_div) for _ in rods]
         order = DIVISION_ORDER
+    if method == "statics" and not CONTACT_STATICS:
+        # the frictionless scene's model, settled by the damped dynamics
+        order = _order("statics", n_elements)
+        method = "damped"
     plans = [
         _plan(scenario, rod, n_elements, method=method, cuts=c, order=order)
         for rod, c in zip(rods, cuts, strict=True)
@@ -803,6 +831,15 @@ def _scene_plans(scenario: Scenario, n_elements: int) -> list[_Plan]:
             )
         out.append(plan)
     return out
+
+
+_SELF_CONTACT_COST = (
+    "dense self-contact with friction (a rope heaped on a floor) is outside this "
+    "adapter's reach: sorojax checks every pair of a rod's contact segments (no "
+    "broad phase), about 45,000 pairs per force evaluation for this rope at a "
+    "sample spacing of two radii, and its friction and stiff contact take "
+    "thousands of implicit steps for the scene's seconds: hours on a small CPU."
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -1116,7 +1153,9 @@ class SorojaxSolver:
 
     Attributes:
         name: ``"sorojax"`` (the benchmark's name for it).
-        capabilities: stretch and shear (no contact of any kind).
+        capabilities: every one of the benchmark's (stretch, shear, rod contact and
+            friction, cylinder and plane contact); dense self-contact (pile)
+            raises ``NotImplementedError`` (see :data:`_SELF_CONTACT_COST`).
         backend_version: the installed sorojax version.
         time_step_scale: multiplies the integrator's steps: the relative tolerance of
             the adaptive step control is scaled by ``time_step_scale**p``, ``p`` the
@@ -1196,7 +1235,9 @@ class SorojaxSolver:
                 entry["solver"] = "solve_statics (Newton, rtol=atol=1e-10)"
                 entry["if_unstable"] = "damped dynamics (mass-proportional)"
             else:
-                solver, rtol, atol = self._tolerances(contact)
+                solver, rtol, atol = self._tolerances(
+                    contact and bool(scenario.obstacles)
+                )
                 entry.update(solver=solver, rtol=rtol, atol=atol, adaptive=True)
             if plan.method == "damped":
                 entry["damping"] = "mass-proportional"
@@ -1230,6 +1271,8 @@ class SorojaxSolver:
         times = np.linspace(0.0, scenario.duration, n_frames)
         rods = scenario.rods
         if _is_contact_scene(scenario):
+            if scenario.self_contact:
+                raise NotImplementedError(_SELF_CONTACT_COST)
             return self._run_scene(scenario, n_elements, times)
         with jax.enable_x64(True):
             models = [
