@@ -10,8 +10,10 @@ solution a cheap proxy for the solutions of every smaller model, evaluated by
 forward kinematics alone (one vmapped call over all candidates):
 
 - :func:`discretization_error` estimates a solution's discretisation error as the
-  change of the quantity of interest (QoI: by default every link's tip pose,
-  positions and rotations times the reference length, relative to it) when each
+  change of the quantity of interest (QoI; by default the whole configuration:
+  poses at probe points of every soft division and at every link's tip, positions
+  and rotations times the reference length, and the reactions of closed loops and
+  prescribed joints as lengths, all relative to the reference length) when each
   mode's highest coefficient is dropped: the error of the next smaller model, an
   upper estimate of this one's under spectral decay.
 - :func:`choose_model` solves a *reference* model (every mode at a high order,
@@ -21,6 +23,7 @@ forward kinematics alone (one vmapped call over all candidates):
   (greedy, best error reduction per coordinate), then *verifies* the choice with
   one solve of the chosen model against the reference, tightening and repeating
   if needed. Its error estimate is that verified difference.
+  :func:`solve_statics_adequate` is its one-liner for a tolerance alone.
 
 Only soft divisions with a :class:`~sorojax.LegendreBasis` are supported (the
 monomial and custom bases are not nested orthogonal families).
@@ -185,8 +188,8 @@ def transfer_coordinates(source: Linkage, q: ArrayLike, target: Linkage) -> np.n
 
 # ---------------------------------------------------------- quantity of interest
 # Probe intervals per soft division of the default QoI: 17 evenly spaced points
-# (ends included) see the shape of every order the choice uses (its reference is at
-# most order 24: a Legendre error's largest value lies within a few % of a probe).
+# (ends included). Errors between probes are not seen; orders above 16 (up to 20 on
+# the clamped rods of tests/test_adequacy.py) then rely on the error's smoothness.
 PROBES = 16
 # Built-in quantities: the whole configuration, or every link's tip pose alone.
 QUANTITIES = ("configuration", "tips")
