@@ -33,7 +33,8 @@ The script:
 
 Each rollout is one Tsit5 integration of the 12-DoF gripper with contact (~10-20
 thousand steps); the hold is shortened to 0.6 s (``t1`` = 1.4 s, grasp.py holds 1 s)
-to keep the run within ~15 minutes on 2 cores.
+to shorten the run: 45 min on 2 cores shared with other jobs (load 6-11), the descent
+27 min of it (5 rollouts with the tangent), the grid and the checks 18 min.
 
 Run::
 

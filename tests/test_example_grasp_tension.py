@@ -5,7 +5,8 @@ The forward-mode derivative of the ball's slip with respect to the tension (thro
 descends on it) against central differences of the same program.
 
 Slow (three rollouts of the 12-DoF gripper with their tangents, ~20 thousand steps
-each, in one ``vmap``): run with ``-m slow``.
+each, in one ``vmap``; 13 min on 2 cores shared with other jobs): run with
+``-m slow``.
 """
 
 import importlib.util
