@@ -4,9 +4,9 @@ Run from the repository root::
 
     .venv/bin/python benchmarks/kinematics_order.py            # orders 2..10, 5 repeats
     .venv/bin/python benchmarks/kinematics_order.py --quick    # orders 4, 8, 3 repeats
-    .venv/bin/python benchmarks/kinematics_order.py --tag after     # results/..._after.*
-    PYTHONPATH=/path/to/old/tree .venv/bin/python benchmarks/kinematics_order.py \
-        --tag before                                   # another sorojax, same script
+    .venv/bin/python benchmarks/kinematics_order.py --tag T         # results/..._T.*
+    PYTHONPATH=/path/to/other/tree .venv/bin/python benchmarks/kinematics_order.py \
+        --tag other                                    # another sorojax, same script
 
 A clamped rod (L = 1 m, r = 1 cm, E = 1e7 Pa, poisson 0.5) with all six strain modes
 active at Legendre order n (6 (n + 1) coordinates, one division, default ``n_gauss``)
@@ -20,9 +20,10 @@ constant, so the poses are exact; only the generalised force J^T W can err).
 Cost, for the same rods: compile time (trace + lower + compile, with sorojax's XLA
 options) and warm time (median of ``--repeats`` calls after a warm-up) of one
 ``solve_statics`` and of one ``mass_matrix`` evaluation. Writes
-``benchmarks/results/kinematics_order[_TAG].csv`` and ``.json``. On a shared
-machine, alternate before/after runs (``_before_r1``, ``_after_r1``, ...) and
-compare pairs: the load moves compile times by a second or more.
+``benchmarks/results/kinematics_order.csv`` and ``.json``, overwritten by a re-run
+(``kinematics_order_<TAG>.*`` with ``--tag``). To compare two sorojax trees on a
+shared machine, alternate tagged runs of each and compare pairs: the load moves
+compile times by a second or more.
 """
 
 import argparse

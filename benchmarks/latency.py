@@ -25,13 +25,14 @@ Targets (issue 19's list):
 
 Run::
 
-    .venv/bin/python benchmarks/latency.py [--targets ...] [--repeats 5] [--tag before]
+    .venv/bin/python benchmarks/latency.py [--targets ...] [--repeats 5] [--tag T]
         [--tiered]
 
 ``--tiered`` also times each target through ``sorojax.jit`` in the default compile
 tiers (a second fresh process: the first call at -O0, the calls until the program
 is compiled again at XLA's default level, then warm calls; ``sorojax.compile_mode``).
-Writes ``benchmarks/results/latency<tag>.json`` and prints a table.
+Writes ``benchmarks/results/latency.json`` (``latency_<T>.json`` with ``--tag T``),
+overwritten by a re-run, and prints a table.
 """
 
 import argparse

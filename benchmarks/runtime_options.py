@@ -43,9 +43,8 @@ Run::
         [--repeats 5] [--compiles 3] [--rounds 2] [--order on off]
 
 Prints a table and writes
-``benchmarks/results/runtime_options_<option>_<first>_first.json``. (Stop 33's first
-runs of the eigen comparison, under the script's first name, are
-``results/eigen_threads_*.json`` with "single" for on and "multi" for off.)
+``benchmarks/results/runtime_options_<option>.json``, overwritten by a re-run (the
+order the variants ran in is recorded in it).
 """
 
 import argparse
@@ -164,7 +163,7 @@ def _report(name, comp, med):
 
 def _write(args, out):
     RESULTS_DIR.mkdir(parents=True, exist_ok=True)
-    path = RESULTS_DIR / f"runtime_options_{args.option}_{args.order[0]}_first.json"
+    path = RESULTS_DIR / f"runtime_options_{args.option}.json"
     path.write_text(json.dumps(out, indent=2))
     print(f"wrote {path}")
 
