@@ -6,7 +6,8 @@ finds it through the entry point ``cosseratbench.solvers: sorojax`` (pyproject.t
 this module is loaded only then, or by its test, so it imports cosseratbench at the
 top. What is not modelled (dense self-contact, a displaced driven end, a turning
 driven start, a Poisson ratio above 0.5) raises ``NotImplementedError`` (reported
-"unsupported").
+"unsupported"). Contact scenes (obstacles, rods that touch) are declared only by
+``SorojaxSolver(contact=True)``: their runs take minutes to hours on a 2-core CPU.
 
 Model per rod (from the scenario's physics; :meth:`SorojaxSolver.settings` reports it):
 
