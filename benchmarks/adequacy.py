@@ -50,6 +50,7 @@ import gc
 import json
 import math
 import statistics
+import sys
 import time
 import warnings
 from pathlib import Path
@@ -60,7 +61,7 @@ jax.config.update("jax_enable_x64", True)
 
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
-from _common import environment  # noqa: E402
+from _common import ROOT, environment  # noqa: E402
 
 import sorojax as sj  # noqa: E402
 from sorojax import scenes  # noqa: E402
@@ -74,7 +75,9 @@ from sorojax.statics._adequacy import (  # noqa: E402
     transfer_coordinates,
 )
 
-ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "tests"))
+from rod_references import twisted_end_pose  # noqa: E402
+
 RESULTS_DIR = ROOT / "benchmarks" / "results"
 TOLS = (1e-3, 1e-5)
 REF_ORDER, REF_CHECK_ORDER, REF_POINTS = 16, 14, 100
@@ -329,27 +332,10 @@ def clamped_buckled():
     )
 
 
-def twisted_end_pose():
-    """The far end at (0.6, 0.3, 0.25) L, turned Rz(0.5) Ry(-0.6) Rx(1.2)."""
-
-    def rot(axis, angle):
-        c, s_ = math.cos(angle), math.sin(angle)
-        i, j = [(1, 2), (2, 0), (0, 1)][axis]
-        m = np.eye(3)
-        m[i, i] = m[j, j] = c
-        m[i, j], m[j, i] = -s_, s_
-        return m
-
-    g = np.eye(4)
-    g[:3, :3] = rot(2, 0.5) @ rot(1, -0.6) @ rot(0, 1.2)
-    g[:3, 3] = np.array([0.6, 0.3, 0.25]) * L_C
-    return g
-
-
 def clamped_twisted():
     from sorojax.lie import log_se3
 
-    g = twisted_end_pose()
+    g = twisted_end_pose(L_C)
     lk = sj.Linkage(
         _clamped_rod(6),
         closed_loops=[sj.ClosedLoopJoint(sj.Joint("N"), 1, 0, g_B=jnp.asarray(g))],

@@ -17,6 +17,8 @@ Contents:
     planar_clamped_clamped  -- a rod clamped at both ends, the far end on the x axis
                                at distance ``d`` (buckled when ``d < L``), in x-y
     clamped_at_pose         -- a rod whose far end is clamped at any pose (3D)
+    twisted_end_pose        -- the out-of-plane, twisted far-end pose of the
+                               adequacy tests and benchmark
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ import math
 import numpy as np
 from scipy.integrate import solve_bvp
 
-__all__ = ["planar_clamped_clamped", "clamped_at_pose"]
+__all__ = ["planar_clamped_clamped", "clamped_at_pose", "twisted_end_pose"]
 
 
 def planar_clamped_clamped(L, d, EI, EA, GA, *, n_mesh=400, tol=1e-10):
@@ -164,3 +166,20 @@ def clamped_at_pose(L, stiffness, g_end, s_guess, g_guess, wrench_guess, *, tol=
         return L * sol.sol(np.asarray(si, dtype=float) / L)[0:3].T
 
     return positions, sol
+
+
+def twisted_end_pose(L: float) -> np.ndarray:
+    """The far end at (0.6, 0.3, 0.25) L, turned Rz(0.5) Ry(-0.6) Rx(1.2): (4, 4)."""
+
+    def rot(axis, angle):
+        c, s = math.cos(angle), math.sin(angle)
+        i, j = [(1, 2), (2, 0), (0, 1)][axis]
+        m = np.eye(3)
+        m[i, i] = m[j, j] = c
+        m[i, j], m[j, i] = -s, s
+        return m
+
+    g = np.eye(4)
+    g[:3, :3] = rot(2, 0.5) @ rot(1, -0.6) @ rot(0, 1.2)
+    g[:3, 3] = np.array([0.6, 0.3, 0.25]) * L
+    return g

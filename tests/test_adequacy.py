@@ -13,7 +13,11 @@ import math
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from rod_references import clamped_at_pose, planar_clamped_clamped
+from rod_references import (
+    clamped_at_pose,
+    planar_clamped_clamped,
+    twisted_end_pose,
+)
 
 import sorojax as sj
 from sorojax.lie import log_se3
@@ -222,23 +226,6 @@ def _centre_line(lk, q, s=S_11):
     return np.asarray(sj.forward_kinematics(smp, jnp.asarray(q)))[idx, :3, 3]
 
 
-def _twisted_pose():
-    """(0.6, 0.3, 0.25) L, turned Rz(0.5) Ry(-0.6) Rx(1.2)."""
-
-    def rot(axis, angle):
-        c, s = math.cos(angle), math.sin(angle)
-        i, j = [(1, 2), (2, 0), (0, 1)][axis]
-        m = np.eye(3)
-        m[i, i] = m[j, j] = c
-        m[i, j], m[j, i] = -s, s
-        return m
-
-    g = np.eye(4)
-    g[:3, :3] = rot(2, 0.5) @ rot(1, -0.6) @ rot(0, 1.2)
-    g[:3, 3] = np.array([0.6, 0.3, 0.25]) * L_C
-    return g
-
-
 @pytest.mark.slow
 def test_choice_sees_the_centre_line_of_a_buckled_clamped_clamped_rod():
     """Clamped at both ends, far end at 0.8 L (the tip is held: exact in every
@@ -272,7 +259,7 @@ def test_choice_sees_the_centre_line_of_a_rod_clamped_at_a_twisted_pose():
     the chosen model's centre line at 11 points is within 1e-5 L of the BVP
     (measured 2.3e-8 L, 86 DoF, estimate 2.7e-8) and the estimate within 10x of that
     distance (~2-3 min)."""
-    g_end = _twisted_pose()
+    g_end = twisted_end_pose(L_C)
     lk = _clamped(g_end)
     xi = np.asarray(log_se3(jnp.asarray(g_end))) / L_C
     q0 = sj.strain_coordinates(lk, jnp.asarray(xi))
