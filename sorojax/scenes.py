@@ -338,7 +338,7 @@ def l_beam(
 # ---------------------------------------------------------------- stability scenes
 # Rods of E 1 MPa, radius 5 mm, bending about z only (inextensible, shearless: the
 # classical elastica), loaded by a unit of their critical load, so that the
-# continuation's load factor reads as P / P_cr (issue 16).
+# continuation's load factor reads as P / P_cr.
 ELASTICA_E, ELASTICA_RADIUS, ELASTICA_LENGTH = 1e6, 0.005, 0.4
 
 

@@ -1,4 +1,4 @@
-"""Equilibrium paths (issue 16): buckling, post-buckling and snap-through.
+"""Equilibrium paths: buckling, post-buckling and snap-through.
 
 References: Euler's buckling loads pi^2 EI / (4 L^2) (clamped-free) and pi^2 EI / L^2
 (pinned-pinned); the pinned-pinned elastica's end rotation alpha at

@@ -272,8 +272,8 @@ def test_default_solver_on_the_damped_free_fall_rod(free_fall_energy_runs):
     "auto" picks the Rosenbrock-W solver here (the fastest eigenvalue, -7959 1/s,
     is a damped mode) and Tsit5 on the undamped rod (purely oscillatory) or at a
     tight rtol. Reference: the Dopri8 run at rtol 1e-8 (tip error ~1e-8 L). Tip
-    error over 5 s measured 4.7e-5 L; tolerance 2e-4 L (issue 3's speed target is
-    met at these defaults, benchmarks/dynamics.py). Energy: never rises by more
+    error over 5 s measured 4.7e-5 L; tolerance 2e-4 L (the accuracy the defaults are
+    chosen for; their speed: benchmarks/dynamics.py). Energy: never rises by more
     than 1e-6 of |E0| between saves (measured: falls at every save).
     """
     rod, ref, _, _ = free_fall_energy_runs[1e4]

@@ -81,8 +81,8 @@ def test_cantilever_sweep_matches_elliptic_integrals(tmp_path):
     """examples/cantilever_sweep.py with 4 loads (P L^2/EI = 0.5 .. 10) under vmap.
 
     Reference: Bisshopp-Drucker elliptic-integral tip position (tests/references.py).
-    Tolerance 1e-4 relative on both tip coordinates (issue 2's bar; order 6 with the
-    default Gauss points gives ~3e-6). The gradient d(tip y)/dP must be positive and
+    Tolerance 1e-4 relative on both tip coordinates (the statics' accuracy bar;
+    order 6 with the default Gauss points gives ~3e-6). The gradient d(tip y)/dP must be positive and
     fall as the rod stiffens geometrically, and at the smallest load match
     the linear value L^3/(3 E I) within 10 % (at alpha = 0.5 the large-deflection
     response is measured 8 % softer than linear).

@@ -1,4 +1,4 @@
-"""Accuracy of the Magnus steps for high-order strain bases (issue 16 (c)).
+"""Accuracy of the Magnus steps for high-order strain bases.
 
 References: the exact full circle under an end moment (constant curvature, which
 every basis represents); the convergence order of the 6th-order step against a
@@ -40,7 +40,7 @@ def test_full_circle_at_order_8_with_default_points():
     poses are exact at any step order, but J^T W is not: the 4th-order step
     integrates the Jacobian columns of the order-8 modes with an O(h^4 |Phi''''|)
     error that q picked up (3e-6 L). The 6th-order step (chosen for orders >= 4)
-    leaves 1.5e-9 L here; 1e-8 L is the target of issue 16 (c).
+    leaves 1.5e-9 L here; tolerance 1e-8 L (the statics' floor it must reach).
     """
     lk, L = _circle_rod(8)
     assert magnus_order(lk) == 6, "order-8 bases must use 6th-order steps"

@@ -1,4 +1,4 @@
-"""Size classes (issue 19): models of other orders and modes share compiled programs.
+"""Size classes: models of other orders and modes share compiled programs.
 
 References: Legendre and monomial families are nested (the first o + 1 polynomials of
 order P are those of order o), so a model padded to a class, with its padding

@@ -1,4 +1,4 @@
-"""Stability of static equilibria (issue 16): the reduced tangent stiffness's spectrum.
+"""Stability of static equilibria: the reduced tangent stiffness's spectrum.
 
 References: a rigid pendulum's potential m g l_c (1 - cos theta) has second derivative
 +m g l_c hanging and -m g l_c upright; the same pendulum as a free body closed to the

@@ -164,7 +164,7 @@ def test_self_weight_sag_matches_cosserat_bvp():
     got = tip_xy(lk, sol.q)[:2]
     ref = cosserat_planar_static(**_sag_reference(extensible=True, shearable=True))
     expected = np.asarray(ref["tip"][:2])
-    # Polynomial strains of order 6 resolve the smooth sag; 1e-5 relative (issue 2).
+    # Polynomial strains of order 6 resolve the smooth sag; 1e-5 relative (the statics' accuracy bar).
     err = np.linalg.norm(got - expected) / np.linalg.norm(expected)
     assert err < 1e-5, f"self-weight tip {got} vs BVP {expected}: rel error {err:.2e}"
     assert expected[1] < -0.02 * SAG["L"], "the sag must be a visible deflection"
@@ -186,7 +186,7 @@ def test_rod_with_rigid_tip_body_matches_cosserat_bvp():
     exp_tip, exp_cm = np.asarray(ref["tip"][:2]), np.asarray(ref["cm"])
     err_tip = np.linalg.norm(rod_tip - exp_tip) / np.linalg.norm(exp_tip)
     err_cm = np.linalg.norm(cm - exp_cm) / np.linalg.norm(exp_cm)
-    # Same discretisation as the self-weight test; 1e-5 relative (issue 2).
+    # Same discretisation as the self-weight test; 1e-5 relative.
     assert err_tip < 1e-5 and err_cm < 1e-5, (
         f"rod tip err {err_tip:.2e}, CM err {err_cm:.2e}"
     )

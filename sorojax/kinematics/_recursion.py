@@ -13,8 +13,8 @@ That is the 4th-order step. A linkage with a division of basis order >= 4 uses t
 dOmega applied by :func:`~sorojax.kinematics._step.magnus6_apply` and its transpose),
 because the 4th-order one
 integrates the Jacobian columns of such modes with an error that becomes the floor
-of the statics (issue 16 (c)); the choice is static (``data.steps.order``) and the
-rest of the recursion is the same.
+of the statics (tests/test_magnus_accuracy.py); the choice is static
+(``data.steps.order``) and the rest of the recursion is the same.
 
 A lumped joint is the same step with Omega = Phi_j q_j, and a constant transform
 (placement, g_i, g_f) a step with a fixed exp(Omega) and dOmega = 0. Every twist and

@@ -35,7 +35,7 @@ _C = math.sqrt(3.0) / 12.0  # 4th-order Magnus commutator weight: c = _C h^2
 # step integrates a mode's Jacobian column with the 2-point Gauss rule (exact up to
 # cubics), so from quartic modes on J^T W gains spurious components of order
 # h^4 |d^4 Phi / dX^4| (the full circle under an end moment ended 3e-5 L from the
-# exact tip at order 4, 3e-6 L at order 8; issue 16 (c)).
+# exact tip at order 4, 3e-6 L at order 8: tests/test_magnus_accuracy.py).
 HIGH_ORDER = 4
 
 
