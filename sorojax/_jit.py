@@ -4,8 +4,9 @@ sorojax's programs are many small fusions and matrix products (6 x 6 adjoints, a
 few dozen coordinates). On CPU, XLA's classic (LLVM IR) emitters compile them 20-35%
 faster than its newer fusion emitters and run them as fast or faster (the hybrid
 scene's dynamics ~30% faster), so sorojax compiles its own programs with
-``xla_cpu_use_fusion_emitters = False`` (`benchmarks/xla_options.py`, figures in
-benchmarks/README.md). Same arithmetic: results agree to rounding (tested).
+``xla_cpu_use_fusion_emitters = False`` (measured on a 2-core CPU with each program
+compiled both ways in one process, warm runs interleaved). Same arithmetic: results
+agree to rounding (tested).
 
 The options are probed once, on the first compile: a JAX whose XLA does not know
 them, a backend other than CPU, or ``SOROJAX_XLA_OPTIONS=off`` compiles with XLA's
@@ -16,13 +17,15 @@ options; pass ``compiler_options=sorojax.compiler_options()`` to your top-level
 
 Compile tiers (``SOROJAX_COMPILE``, :func:`compile_mode`): XLA's LLVM code generation
 is most of a first call's time, and at -O0 it takes about half as long; the code then
-runs 3-7x slower (`benchmarks/latency.py`). So by default a top-level sorojax program
-is first compiled at -O0 and compiled again at XLA's default level only once its
-calls have run for as long as that first compile took ("ski rental": a program
-called once or a few times pays half the compile; a hot one at most one extra -O0
-compile and as much time again in slow calls; the second compile runs in a worker
-thread while the calls go on at -O0). The two tiers compute the same HLO
-program; results agree to rounding (~1e-15 relative), not bit for bit: set
+runs 3-7x slower (`benchmarks/latency.py`). On a 2-core CPU XLA's compiles are
+about half of an example's first run and tracing and lowering about a quarter (JAX's
+compile events, per program), hence these tiers and :func:`prepare`. So by default a
+top-level sorojax program is first compiled at -O0 and compiled again at XLA's
+default level only once its calls have run for as long as that first compile took
+("ski rental": a program called once or a few times pays half the compile; a hot one
+at most one extra -O0 compile and as much time again in slow calls; the second
+compile runs in a worker thread while the calls go on at -O0). The two tiers compute
+the same HLO program; results agree to rounding (~1e-15 relative), not bit for bit: set
 ``SOROJAX_COMPILE=full`` for bit-for-bit repeatable runs.
 """
 
@@ -44,7 +47,10 @@ CPU_OPTIONS: dict[str, Any] = {
     "xla_cpu_use_fusion_emitters": False,
     # Matrix products on the calling thread: sorojax's are tiny (6 x 6 blocks, n_dof
     # up to ~60), and handing each to Eigen's thread pool cost more than the product
-    # (warm 1.0-2.0x, compiles within noise: benchmarks/runtime_options.py).
+    # (warm 1.0-2.0x faster on a 2-core CPU, compiles within noise). XLA's YNNPACK
+    # fusions stay on: without them (xla_cpu_experimental_ynn_fusion_type="") warm
+    # runs are up to 1.25x faster but compiles up to 30 % longer; a long run or a
+    # sweep may add that option to its own jit.
     "xla_cpu_multi_thread_eigen": False,
 }
 
@@ -88,8 +94,8 @@ RUNTIME_FLAGS: tuple[str, ...] = (
     # XLA's CPU scheduler orders a program's operations for concurrency on the
     # runtime's thread pool; sorojax's are tiny (6 x 6 blocks). Without it: large
     # programs compile 3-10 % faster, warm runs equal or up to 1.3x faster (the
-    # hybrid's dynamics), up to 1.8x on a loaded machine (benchmarks/README.md,
-    # thirteenth round). XLA reads it only from XLA_FLAGS.
+    # hybrid's dynamics), up to 1.8x on a loaded machine (2-core CPU, fresh
+    # processes alternating). XLA reads it only from XLA_FLAGS.
     "--xla_cpu_enable_concurrency_optimized_scheduler=false",
 )
 """XLA flags :func:`set_runtime_flags` adds (the CPU runtime's, for small programs)."""
@@ -154,13 +160,14 @@ def traced_once(fun: Callable) -> Callable:
     Inside a trace its equations go into the calling program as if traced there (no
     call boundary), but JAX keeps the jaxpr of each argument structure and shape:
     later programs re-emit the cached equations (~10x faster than running the
-    Python again). It pays for functions that many programs call with the same
-    arguments and without tangents (:func:`sorojax.model.precompute`). Under
-    ``jvp`` or ``vmap`` JAX transforms the cached jaxpr, which on a first call costs
-    the primal trace on top: measured by traced Python calls, the kinematic passes
-    wrapped this way traced the manual hybrid's programs 3 % faster but the
-    continuation's corrector (a forward-mode Jacobian of them) 15 % slower
-    (benchmarks/README.md, eleventh round), so they are not. For functions of arrays
+    Python again: with :func:`sorojax.model.precompute` wrapped so, the manual
+    hybrid's six programs trace with 18 % fewer Python calls). It pays for functions
+    that many programs call with the same arguments and without tangents
+    (:func:`sorojax.model.precompute`). Under ``jvp`` or ``vmap`` JAX transforms the
+    cached jaxpr, which on a first call costs the primal trace on top: measured by
+    traced Python calls, the kinematic passes wrapped this way traced the manual
+    hybrid's programs 3 % faster but the continuation's corrector (a forward-mode
+    Jacobian of them) 15 % slower, so they are not. For functions of arrays
     and hashable static values only (a NumPy array argument would become a traced
     input).
     """
@@ -422,9 +429,14 @@ def prepare(fn: Callable, /, *args, **kwargs) -> concurrent.futures.Future | Non
     (statics, then a simulation, ...). ``prepare`` traces and lowers the programs of
     a later call now, in the calling thread, and compiles them in a worker thread
     while the script goes on; XLA's compile does not hold Python's lock, so on a
-    machine with a core to spare it runs beside the script's other work. The later
-    call with arguments of the same shapes and the same settings waits for the
-    compile instead of compiling. Nothing is computed: array values do not matter,
+    machine with a core to spare it runs beside the script's other work. Two compiles
+    at once share the cores (together 1.1-1.3x faster than one after the other on a
+    2-core CPU), so the gain is mostly the calling thread's own work meanwhile: the
+    manual hybrid's statics followed by 1 s of dynamics take 11.7 s from the first
+    call to the trajectory with the dynamics prepared first, against 12.8 s without
+    (medians of four fresh processes each, cache off, 2-core CPU). The later call
+    with arguments of the same shapes and the same settings waits for the compile
+    instead of compiling. Nothing is computed: array values do not matter,
     except where ``fn`` decides on the host from them (``simulate``'s
     ``solver="auto"`` picks the solver from ``q0``, ``t0`` and ``t1``: name it).
 

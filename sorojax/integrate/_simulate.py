@@ -100,7 +100,7 @@ host, once per call) and picks
   0.64 s; the program compiles in the same time). Where fast modes must be
   resolved anyway Dopri8 gains nothing (the manual's hybrid over 2 s: at rtol 1e-6
   Tsit5 1.5-1.7 s against 1.9-2.2 s, at rtol 1e-8 about even, 2.9 / 3.5 s against
-  3.2 / 3.4 s in two runs; ``benchmarks/auto_solver.py``);
+  3.2 / 3.4 s in two runs on a 2-core CPU);
 * else ``"tsit5"``.
 
 Under an outer jit/vmap/grad with traced parameters no host analysis is possible:

@@ -20,6 +20,12 @@ sums can move the steps, so trajectories agree to the tolerance). What
 recompiles: the class itself (its order, modes, points and divisions), another
 number of links or loads, and a load or cable anchor moved to another division
 or point (each changes the points or coordinates).
+
+Padding pays where compiles dominate: on a 2-core CPU (fresh processes, cache off)
+the statics of a 3D cantilever at orders 1..6 take 4.7-7.2 s padded to class 6
+against 14.3-14.7 s unpadded, and 0.5 s of the damped free-fall rod at orders 1..4
+8.2-8.8 s against 14.4-15.2 s; a padded model runs at its class's size, so a low
+order costs more per call (order 1 in class 6: 13.5-14.7 ms warm against 3.2-3.6 ms).
 """
 
 from collections.abc import Callable
