@@ -179,7 +179,7 @@ def hybrid_inputs(t):
 
 
 def bench_hybrid(repeats, dyn_repeats):
-    from sorojax.scenes import manual_hybrid  # being added to scenes.py with issue 4
+    from sorojax.scenes import manual_hybrid
 
     linkage = manual_hybrid()
     q_ref = jnp.zeros(linkage.n_dof)

@@ -1,4 +1,4 @@
-"""First-run latency (issue 19): where a cold first call's time goes, per program.
+"""First-call latency: where a cold first call's time goes, per program.
 
 Each target runs in a fresh Python process with JAX's persistent compilation cache
 off, as a new user's first call. It is one top-level ``jax.jit`` (sorojax's compiler
@@ -7,7 +7,7 @@ jaxpr: sorojax's model code runs here), ``lower`` (jaxpr -> StableHLO), ``compil
 (XLA), then the first call and the median of warm calls. The size of the optimised
 HLO (instructions) is reported with each.
 
-Targets (issue 19's list):
+Targets:
 
 * ``statics30``: statics of the 30-DoF rod of ``benchmarks/statics.py`` (torsion and
   two bendings, order 9; tip load P L^2/EI = 5 plus 0.5 out of plane);
@@ -20,8 +20,8 @@ Targets (issue 19's list):
 * ``grad_freefall1``: ``jax.grad`` of the tip height after 1 s of the damped
   free-fall rod with respect to the scale of its initial strain;
 * ``fwdgrad_freefall1``: the same derivative in forward mode (``jax.jacfwd``
-  through ``simulate(..., adjoint=diffrax.ForwardMode())``: one tangent; not one
-  of issue 19's targets, the way README recommends for a few parameters).
+  through ``simulate(..., adjoint=diffrax.ForwardMode())``: one tangent, the mode
+  to use for a few parameters).
 
 Run::
 
