@@ -261,7 +261,7 @@ def clamped_loop():
     )
     # first clamped-clamped mode w = a/2 (1 - cos(2 pi s / L)); linear theory's
     # amplitude for an end shortening of 0.1 L is a = sqrt(0.4) L / pi (the strain
-    # includes the reference elongation 1, which strain_coordinates subtracts)
+    # includes the reference elongation 1: a total strain)
     a = math.sqrt(0.4) * L_C / math.pi
     k = 2 * math.pi / L_C
 
@@ -273,8 +273,8 @@ def clamped_loop():
 
         return f
 
-    q0 = sj.strain_coordinates(lk, strain(0.0), link=1)
-    q0 = sj.strain_coordinates(lk, strain(L_C / 2), link=2, q=q0)
+    q0 = sj.strain_coordinates(lk, strain(0.0), link=1, total=True)
+    q0 = sj.strain_coordinates(lk, strain(L_C / 2), link=2, q=q0, total=True)
     return Scene(
         "clamped_loop",
         "closed loop: rod (E 1 MPa, r 5 mm, L 0.4 m, two links of 0.2 m) clamped at"
@@ -328,7 +328,7 @@ def clamped_buckled():
         " (closed loop: the tip is held), buckled from the first mode; all six modes,"
         " order 6",
         lk,
-        q0=np.asarray(sj.strain_coordinates(lk, strain)),
+        q0=np.asarray(sj.strain_coordinates(lk, strain, total=True)),
     )
 
 
@@ -348,7 +348,7 @@ def clamped_twisted():
         " Rz(0.5) Ry(-0.6) Rx(1.2) (out of plane, twisted; closed loop), from the"
         " constant strain reaching it; all six modes, order 6",
         lk,
-        q0=np.asarray(sj.strain_coordinates(lk, jnp.asarray(xi))),
+        q0=np.asarray(sj.strain_coordinates(lk, jnp.asarray(xi), total=True)),
     )
 
 

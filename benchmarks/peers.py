@@ -153,10 +153,9 @@ def arc_tip(s):
 # --------------------------------------------------------------------------- sorojax
 def sorojax_rod(modes, order, eta=0.0, n_gauss=None):
     rod = free_fall_rod(order=order, eta=eta, modes=modes, n_gauss=n_gauss)
-    # 1 rad/m about y, unstretched: the full screw strain (the reference strain is
-    # subtracted inside). ``free_fall_q0`` gives the same q for the bend/twist rod but
-    # for a rod with the stretch mode it passes gx = 0 (a rod of zero length).
-    q0 = sorojax.strain_coordinates(rod, [0.0, KAPPA0, 0.0, 1.0, 0.0, 0.0])
+    # 1 rad/m about y, unstretched, as a total strain (reference elongation 1
+    # included); ``free_fall_q0`` gives the same q as a deviation from the reference.
+    q0 = sorojax.strain_coordinates(rod, [0.0, KAPPA0, 0.0, 1.0, 0.0, 0.0], total=True)
     if modes == BEND_TWIST:
         assert np.allclose(q0, free_fall_q0(rod), atol=1e-12)
     tip0 = np.asarray(sorojax.tip_pose(rod, q0))[:3, 3]

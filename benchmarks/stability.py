@@ -137,7 +137,7 @@ def buckled_guess(lk):
     def strain(s):
         return jnp.stack([0.0, 0.0, a / 2 * k**2 * jnp.cos(k * s), 1.0, 0.0, 0.0])
 
-    return sj.strain_coordinates(lk, strain)
+    return sj.strain_coordinates(lk, strain, total=True)
 
 
 def scaled_rows(lk):

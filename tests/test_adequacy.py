@@ -238,6 +238,7 @@ def test_choice_sees_the_centre_line_of_a_buckled_clamped_clamped_rod():
     q0 = sj.strain_coordinates(
         lk,
         lambda s: jnp.stack([0.0, 0.0, a / 2 * k**2 * jnp.cos(k * s), 1.0, 0.0, 0.0]),
+        total=True,
     )
     K = _stiffness()
     positions, _ = planar_clamped_clamped(L_C, 0.8 * L_C, K[2], K[3], K[4])
@@ -262,7 +263,7 @@ def test_choice_sees_the_centre_line_of_a_rod_clamped_at_a_twisted_pose():
     g_end = twisted_end_pose(L_C)
     lk = _clamped(g_end)
     xi = np.asarray(log_se3(jnp.asarray(g_end))) / L_C
-    q0 = sj.strain_coordinates(lk, jnp.asarray(xi))
+    q0 = sj.strain_coordinates(lk, jnp.asarray(xi), total=True)
     res = sj.solve_statics_adequate(lk, q0, tol=1e-6)
     # the BVP, started from the choice's reference (poses and internal wrenches)
     ref, q_ref = res.reference, jnp.asarray(res.q_reference)

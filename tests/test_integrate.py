@@ -6,6 +6,7 @@ physics references (energy, frequencies, pendulums) are in test_dynamics.py.
 
 import math
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -50,6 +51,55 @@ def test_strain_coordinates_errors(rod):
         sj.strain_coordinates(rod, jnp.zeros(6), link=2)
     with pytest.raises(ValueError, match=r"strain gives shape \(2,\); expected \(6,\)"):
         sj.strain_coordinates(rod, [0.0, 1.0])
+
+
+@pytest.fixture(scope="module")
+def stretchy():
+    """The rod of :func:`rod` with an elongation mode too (bend y + stretch, order 1)."""
+    return cantilever(
+        length=0.3,
+        radius=0.005,
+        E=1e6,
+        modes=(0, 1, 0, 1, 0, 0),
+        order=1,
+        gravity=(0.0, 0.0, -9.81),
+        n_gauss=6,
+    )
+
+
+def test_strain_coordinates_bend_an_extensible_rod_without_collapsing_it(stretchy):
+    """A deviation [0, k, 0, 0, 0, 0] bends the rod and keeps its reference stretch.
+
+    Reference: the tip of the unstretched circle of curvature k (as above), 1e-12;
+    the same q from the total strain [0, k, 0, 1, 0, 0] with ``total=True`` (1e-12:
+    the same least-squares fit).
+    """
+    k, L = 2.0, 0.3
+    q = sj.strain_coordinates(stretchy, [0.0, k, 0.0, 0.0, 0.0, 0.0])
+    tip = sj.tip_pose(stretchy, q)[:3, 3]
+    expected = np.array([math.sin(k * L) / k, 0.0, -(1 - math.cos(k * L)) / k])
+    np.testing.assert_allclose(tip, expected, rtol=0, atol=1e-12)
+    q_total = sj.strain_coordinates(stretchy, [0.0, k, 0.0, 1.0, 0.0, 0.0], total=True)
+    np.testing.assert_allclose(q_total, q, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("strain", "total", "gx"),
+    [
+        ([0.0, 1.0, 0.0, 0.0, 0.0, 0.0], True, "0"),  # a deviation passed as total
+        ([0.0, 0.0, 0.0, -1.0, 0.0, 0.0], False, "0"),  # stretch 1 - 1
+        ([0.0, 0.0, 0.0, -2.5, 0.0, 0.0], False, "-1.5"),  # inverted
+    ],
+)
+def test_strain_coordinates_refuse_a_collapsed_rod(stretchy, strain, total, gx):
+    """A strain whose fitted axial stretch is <= 0 is refused, naming gx and the fix;
+    under vmap (traced strain) the same check runs inside the program."""
+    with pytest.raises(ValueError, match=rf"axial stretch gx = {gx} .*total=True"):
+        sj.strain_coordinates(stretchy, strain, total=total)
+    with pytest.raises(eqx.EquinoxRuntimeError, match="axial stretch gx <= 0"):
+        jax.vmap(lambda x: sj.strain_coordinates(stretchy, x, total=total))(
+            jnp.asarray([strain])
+        )
 
 
 def test_max_steps_gives_result_code_and_clear_error(rod):

@@ -107,7 +107,7 @@ def _buckled_guess(lk, scale):
     def strain(s):
         return jnp.stack([0.0, 0.0, a / 2 * k**2 * jnp.cos(k * s), 1.0, 0.0, 0.0])
 
-    return sj.strain_coordinates(lk, strain)
+    return sj.strain_coordinates(lk, strain, total=True)
 
 
 @pytest.mark.parametrize("scale", [0.1, 1.0, 3.0])

@@ -502,7 +502,7 @@ def _tabulated_strain(s_k, kappa, s_n, stretch, s):
 
 @eqx.filter_jit
 def _fit(sampler: sj.Linkage, strain) -> jax.Array:
-    return sj.strain_coordinates(sampler, strain, link=1)
+    return sj.strain_coordinates(sampler, strain, link=1, total=True)
 
 
 @eqx.filter_jit

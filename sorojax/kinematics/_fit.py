@@ -2,6 +2,7 @@
 
 from collections.abc import Callable
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike
@@ -17,24 +18,39 @@ def strain_coordinates(
     strain: ArrayLike | Callable[[Array], ArrayLike],
     link: int = 1,
     q: ArrayLike | None = None,
+    *,
+    total: bool = False,
 ) -> Array:
     """``q`` whose strain on soft link ``link`` best fits ``strain`` (least squares).
 
-    Used to set initial and reference-relative configurations, e.g. a rod pre-bent at
-    1 rad/m about y: ``strain_coordinates(rod, [0, 1, 0, 0, 0, 0])``. The fit is by
-    Gauss quadrature over every division, so a strain the basis can represent is
-    reproduced exactly; modes the basis lacks are ignored.
+    Used to set initial configurations. By default ``strain`` is the deviation from
+    the link's reference strain (what ``q`` measures), so a straight rod pre-bent at
+    1 rad/m about y, keeping its reference stretch, is
+    ``strain_coordinates(rod, [0, 1, 0, 0, 0, 0])``; the same in total strain is
+    ``strain_coordinates(rod, [0, 1, 0, 1, 0, 0], total=True)`` (the straight
+    reference's elongation 1 included). The fit is by Gauss quadrature over every
+    division, so a strain the basis can represent is reproduced exactly; modes the
+    basis lacks keep their reference value.
 
     Args:
         linkage: the model.
         strain: the screw strain ``(kx, ky, kz, gx, gy, gz)`` [1/m, -], a constant or a
-            function of the arc length ``s`` [m] from the link's start; the link's
-            reference strain is subtracted (``q`` measures the deviation from it).
+            function of the arc length ``s`` [m] from the link's start: the deviation
+            from the reference strain, or with ``total=True`` the whole strain.
         link: 1-based index of a soft link.
         q: coordinates to start from (other links keep theirs); default zeros.
+        total: ``strain`` includes the reference strain (the fit subtracts it).
 
     Returns:
         ``(n_dof,)`` coordinates.
+
+    Raises:
+        ValueError: ``link`` is not a soft link; ``strain`` is not a 6-vector; or the
+            fitted axial stretch ``gx`` (reference included) is <= 0 somewhere on the
+            link, i.e. the rod would collapse or turn inside out (typically a total
+            strain without its elongation 1 passed as a deviation, or a deviation
+            with ``total=True``). Under an outer ``jax.jit``/``vmap``/``grad`` the
+            last check runs inside the program (``equinox.error_if``).
     """
     soft = [i + 1 for i, lk in enumerate(linkage.links) if isinstance(lk, SoftLink)]
     if not 1 <= link <= linkage.n_links or not isinstance(
@@ -45,21 +61,49 @@ def strain_coordinates(
             f"soft links: {soft})."
         )
     q = None if q is None else jnp.asarray(q, dtype=float)
-    return _fit(linkage, strain if callable(strain) else jnp.asarray(strain), link, q)
+    if not callable(strain):
+        strain = jnp.asarray(strain)
+        if strain.shape != (6,):
+            raise ValueError(
+                f"strain gives shape {strain.shape}; expected (6,) "
+                "(kx, ky, kz, gx, gy, gz), or a function of the arc length s."
+            )
+    q, gx_min, s_min = _fit(linkage, strain, link, q, bool(total))
+    kind = "total strain" if total else "deviation from the reference strain"
+    fix = (
+        "pass the deviation from the reference (the default, e.g. "
+        "[0, 1, 0, 0, 0, 0] bends at 1 rad/m and keeps the reference stretch), or "
+        "with total=True include the elongation (e.g. [0, 1, 0, 1, 0, 0])"
+    )
+    if isinstance(gx_min, jax.core.Tracer):
+        return eqx.error_if(
+            q,
+            gx_min <= 0,
+            f"strain_coordinates: strain (a {kind}) gives link {link} an axial "
+            f"stretch gx <= 0, collapsing or inverting the rod; {fix}.",
+        )
+    if not float(gx_min) > 0:
+        raise ValueError(
+            f"strain (a {kind}) gives link {link} an axial stretch gx = "
+            f"{float(gx_min):.6g} (reference included) at s = {float(s_min):.4g} m: "
+            f"a rod with gx <= 0 collapses or turns inside out; {fix}."
+        )
+    return q
 
 
 @jit
-def _fit(linkage: Linkage, strain, link: int, q) -> Array:
+def _fit(linkage: Linkage, strain, link: int, q, total: bool):
     """The fit of :func:`strain_coordinates`, one compiled program.
 
-    Run eagerly, its few dozen small operations were compiled one by one (87
-    programs, 2.5 s on 2 cores for the free-fall rod's initial shape; now 0.5 s).
+    Returns ``(q, gx_min, s_min)``: the coordinates, the smallest fitted axial
+    stretch on the link (reference included) and the arc length [m] where it is.
     """
     fn = strain if callable(strain) else (lambda s: strain)
     data = precompute(linkage)
     lay = linkage.layout.links[link - 1]
     q = jnp.zeros(linkage.n_dof) if q is None else q
     s0 = 0.0
+    gx, ss = [], []
     for dd, dl, div in zip(
         data.links[link - 1].divisions,
         lay.divisions,
@@ -75,12 +119,20 @@ def _fit(linkage: Linkage, strain, link: int, q) -> Array:
                 f"strain gives shape {target.shape[1:]}; expected (6,) "
                 "(kx, ky, kz, gx, gy, gz)."
             )
-        target = target - dd.xi_ref
+        if total:
+            target = target - dd.xi_ref
         A = jnp.einsum("p,pai,paj->ij", w, dd.Phi, dd.Phi)
         if dd.locked is not None:  # padding (zero columns) fits to zero
             A = A + jnp.diag(dd.locked)
         b = jnp.einsum("p,pai,pa->i", w, dd.Phi, target)
         if dd.n_dof:
-            q = q.at[dd.offset : dd.offset + dd.n_dof].set(jnp.linalg.solve(A, b))
+            q_div = jnp.linalg.solve(A, b)
+            q = q.at[dd.offset : dd.offset + dd.n_dof].set(q_div)
+            gx.append(dd.Phi[:, 3, :] @ q_div + dd.xi_ref[:, 3])
+        else:
+            gx.append(dd.xi_ref[:, 3])
+        ss.append(s)
         s0 = s0 + L
-    return q
+    gx, ss = jnp.concatenate(gx), jnp.concatenate(ss)
+    i = jnp.argmin(gx)
+    return q, gx[i], ss[i]
