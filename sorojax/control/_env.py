@@ -39,6 +39,7 @@ from ..integrate._simulate import (
 from ..kinematics._api import screw_strains, tip_pose
 from ..kinematics._recursion import poses_and_jacobians
 from ..model._actuation import Cable
+from ..model._checks import is_concrete
 from ..model._linkage import Linkage
 from ..model._precompute import precompute
 
@@ -145,6 +146,11 @@ class Environment(eqx.Module):
                     f"the period ({self.period} s) a whole number of times, or None "
                     "for adaptive steps."
                 )
+        if is_concrete(self.noise) and not np.all(np.asarray(self.noise) >= 0):
+            raise ValueError(
+                f"Environment.noise = {np.asarray(self.noise).tolist()}: give standard "
+                "deviations >= 0 of the initial coordinates' perturbation."
+            )
         n_dof, n_in = self.linkage.n_dof, self.linkage.n_inputs
         for name, size in (("q0", n_dof), ("qd0", n_dof), ("u0", n_in)):
             v = getattr(self, name)

@@ -24,6 +24,7 @@ from ..kinematics._recursion import (
     poses_and_jacobians,
     strains,
 )
+from ..model._checks import check_finite, is_concrete
 from ..model._linkage import Linkage
 from ..model._precompute import LinkageData, precompute
 from ._actuation import actuation_loads, effective_inputs
@@ -311,6 +312,8 @@ def forward_dynamics(
         or linkage.closed_loops
         or linkage.custom_actuation is not None
     ):
+        if u is not None:  # refused unless empty: no actuator would take it
+            as_inputs(linkage, u, q.dtype)
         return accelerations(linkage, data, t, q, qd, generalized_force)
     u_ = as_inputs(linkage, u, q.dtype)
     st = constrained_dynamics(linkage, data, t, q, qd, lambda _: u_, generalized_force)
@@ -343,10 +346,21 @@ def as_inputs(linkage: Linkage, u, dtype) -> Array:
     m = linkage.n_inputs
     if u is None:  # made on the host: jnp.zeros compiles a program per size
         return jnp.asarray(np.zeros(m, dtype))
-    u = jnp.asarray(u, dtype=dtype).reshape(-1) if m else jnp.zeros(0, dtype)
+    u = jnp.asarray(u, dtype=dtype).reshape(-1)
     if u.shape != (m,):
+        if m == 0:
+            shown = (
+                f"u = {np.asarray(u).tolist()}"
+                if is_concrete(u)
+                else f"u has shape {u.shape}"
+            )
+            raise ValueError(
+                f"{shown}, but this linkage has no actuators (n_inputs = 0): "
+                "add actuators to Linkage(actuators=...) or drop u."
+            )
         raise ValueError(
             f"u has shape {u.shape}; this linkage has n_inputs = {m} (see "
             "Linkage.input_slices): give one entry per input, in actuator order."
         )
+    check_finite("u", u, "give finite inputs (tensions [N], joint efforts, ...)")
     return u

@@ -18,6 +18,7 @@ failed result code rather than an error naming them.
 import concurrent.futures
 import contextlib
 import functools
+import math
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
@@ -45,6 +46,7 @@ from ..dynamics._eom import (
 )
 from ..kinematics._api import _as_q
 from ..kinematics._recursion import kinematics_and_rates
+from ..model._checks import check_finite, is_concrete
 from ..model._link import SoftLink
 from ..model._linkage import Linkage
 from ..model._precompute import precompute
@@ -646,6 +648,48 @@ def _check_adjoint(adjoint, solver) -> None:
         )
 
 
+def _check_span(t0, t1, ts) -> None:
+    """Refuse a concrete time span that is not finite and forward (or bad ts)."""
+    for name, value in (("t0", t0), ("t1", t1)):
+        check_finite(name, value, "give the time in seconds")
+    if is_concrete(t0) and is_concrete(t1) and float(t1) < float(t0):
+        raise ValueError(
+            f"t1 = {float(t1)!r} is before t0 = {float(t0)!r}: simulate integrates "
+            "forward in time; give t1 >= t0 (to run backwards, negate time in your "
+            "model)."
+        )
+    if ts is not None and is_concrete(ts):
+        ts_np = np.asarray(ts, dtype=float).reshape(-1)
+        check_finite("ts", ts_np, "give finite save times in seconds")
+        back = np.flatnonzero(np.diff(ts_np) < 0)
+        if back.size:
+            i = int(back[0])
+            raise ValueError(
+                f"ts[{i + 1}] = {ts_np[i + 1]!r} is before ts[{i}] = {ts_np[i]!r}: "
+                "give save times in increasing order."
+            )
+
+
+def _check_steps(rtol, atol, dt0, adaptive) -> None:
+    """Refuse step-control settings that cannot work (concrete values only)."""
+    if adaptive:
+        for name, value in (("rtol", rtol), ("atol", atol)):
+            if is_concrete(value) and not 0 <= float(value) < math.inf:
+                raise ValueError(
+                    f"{name} = {value!r}: give a finite tolerance >= 0 (defaults "
+                    "rtol 1e-3, atol 1e-5)."
+                )
+        if is_concrete(rtol) and is_concrete(atol) and float(rtol) + float(atol) == 0:
+            raise ValueError(
+                "rtol = atol = 0: no step would ever be accepted; give either > 0."
+            )
+    if dt0 is not None and is_concrete(dt0) and not 0 < float(dt0) < math.inf:
+        raise ValueError(
+            f"dt0 = {dt0!r}: give the (initial) step in seconds, finite and > 0, or "
+            "None to let the adaptive controller choose it."
+        )
+
+
 class _Plan(NamedTuple):
     """What :func:`simulate` decided on the host: the compiled core's arguments."""
 
@@ -664,6 +708,10 @@ def _plan(
     q0 = _as_q(linkage, zeros if q0 is None else q0, "q0")
     qd0 = _as_q(linkage, zeros.astype(q0.dtype) if qd0 is None else qd0, "qd0")
     dtype = q0.dtype
+    check_finite("q0", q0, "give finite initial coordinates (default zeros)")
+    check_finite("qd0", qd0, "give finite initial velocities (default zeros)")
+    _check_span(t0, t1, ts)
+    _check_steps(rtol, atol, dt0, adaptive)
     t0_, t1_ = jnp.asarray(t0, dtype=dtype), jnp.asarray(t1, dtype=dtype)
     u_fn, u_const = _split_inputs(linkage, u, dtype)
     if _top_level():  # a call of its own (not inside a user's trace)
@@ -702,7 +750,8 @@ def _plan(
     else:
         if dt0 is None:
             raise ValueError(
-                "adaptive=False needs a step: give dt0 (the constant step, in s)."
+                "adaptive=False needs a step: dt0 = None; give dt0 (the constant "
+                "step, in s)."
             )
         controller = diffrax.ConstantStepSize()
         solver_ = _root_finder_tolerances(solver_, rtol, atol)
@@ -793,4 +842,5 @@ def _split_inputs(linkage: Linkage, u, dtype):
             f"u has shape {u.shape}; this linkage has n_inputs = {m} (see "
             "Linkage.input_slices): give one entry per input, or a function of t."
         )
+    check_finite("u", u, "give finite inputs (tensions [N], joint efforts, ...)")
     return None, u

@@ -27,7 +27,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from ._checks import check_shape
+from ._checks import check_positive, check_shape
 
 
 class AbstractCablePath(eqx.Module):
@@ -82,6 +82,7 @@ class HelicalPath(AbstractCablePath):
     phase: Float[Array, ""]
 
     def __init__(self, radius: ArrayLike, turns: ArrayLike, phase: ArrayLike = 0.0):
+        check_positive("HelicalPath.radius", radius, allow_zero=True)
         self.radius = jnp.asarray(radius, dtype=float)
         self.turns = jnp.asarray(turns, dtype=float)
         self.phase = jnp.asarray(phase, dtype=float)

@@ -20,11 +20,17 @@ MODE_NAMES = ("torsion", "bend_y", "bend_z", "elongation", "shear_y", "shear_z")
 
 def _normalise(cls_name: str, modes, orders) -> tuple[tuple[int, ...], tuple[int, ...]]:
     try:
+        bad = [m for m in modes if m not in (0, 1)]
         modes_t = tuple(int(bool(m)) for m in modes)
     except TypeError:
         raise ValueError(
             f"{cls_name}.modes = {modes!r}: give six 0/1 flags for {MODE_NAMES}."
         ) from None
+    if bad:
+        raise ValueError(
+            f"{cls_name}.modes = {modes!r} holds {bad[0]!r}: give six 0/1 flags "
+            f"(on/off, not orders: orders go in `orders`) for {MODE_NAMES}."
+        )
     if len(modes_t) != 6:
         raise ValueError(
             f"{cls_name}.modes = {modes!r} has {len(modes_t)} entries: give six 0/1 "

@@ -24,6 +24,16 @@ def check_positive(field: str, value, *, allow_zero: bool = False) -> None:
         raise ValueError(f"{field} = {value!r} is not allowed: give {allowed}.")
 
 
+def check_finite(field: str, value, fix: str = "give finite numbers") -> None:
+    """Raise ``ValueError`` if a concrete ``value`` holds a NaN or an infinity."""
+    if value is None or not is_concrete(value) or callable(value):
+        return
+    arr = np.asarray(value, dtype=float)
+    if not np.all(np.isfinite(arr)):
+        shown = arr.tolist() if arr.size <= 8 else "an array with non-finite entries"
+        raise ValueError(f"{field} = {shown} is not finite: {fix}.")
+
+
 def check_shape(field: str, value, shape: tuple[int, ...]) -> None:
     """Raise ``ValueError`` if ``value`` does not have exactly ``shape``."""
     got = np.shape(value)

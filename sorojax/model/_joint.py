@@ -123,6 +123,11 @@ class Joint(eqx.Module):
                 f"Joint.axis = {axis!r} is not allowed: give a non-zero 3-vector."
             )
         a = a / np.linalg.norm(a)
+        if not _traced(pitch) and not np.all(np.isfinite(np.asarray(pitch, float))):
+            raise ValueError(
+                f"Joint.pitch = {pitch!r} is not finite: give the helical pitch in "
+                "m/rad (0 for a pure rotation)."
+            )
         n = JOINT_DOFS[kind]
         directions, lead = _directions(kind, a)
         # numpy -> a transfer, no operation to compile; concrete even when the joint

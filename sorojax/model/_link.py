@@ -19,7 +19,13 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from ._basis import AbstractStrainBasis, LegendreBasis
-from ._checks import check_positive, check_se3, check_shape
+from ._checks import (
+    check_finite,
+    check_positive,
+    check_se3,
+    check_shape,
+    is_concrete,
+)
 from ._joint import Joint
 from ._material import Material
 from ._section import AbstractSection, CircularSection
@@ -105,6 +111,15 @@ class Division(eqx.Module):
             )
         if not callable(xi_ref):
             check_shape("Division.xi_ref", xi_ref, (6,))
+            check_finite("Division.xi_ref", xi_ref)
+            if is_concrete(xi_ref) and not float(np.asarray(xi_ref, float)[3]) > 0:
+                raise ValueError(
+                    f"Division.xi_ref = {xi_ref!r} has axial stretch gx = "
+                    f"{float(np.asarray(xi_ref, float)[3])}: a reference with gx <= 0 "
+                    "is a collapsed or inverted rod; give the total reference strain, "
+                    "gx = 1 for an unstretched rod, e.g. (0, 1, 0, 1, 0, 0) for a rod "
+                    "pre-curved at 1 rad/m about y."
+                )
             xi_ref = jnp.asarray(xi_ref, dtype=float)
         self.length = jnp.asarray(length, dtype=float)
         self.section = section
@@ -246,6 +261,7 @@ class RigidLink(AbstractLink):
             check_positive("RigidLink.mass", mass, allow_zero=True)
         if inertia is not None:
             check_shape("RigidLink.inertia", inertia, (3, 3))
+            _check_inertia(inertia)
         if section is None:
             section = CircularSection(0.01)
         self.joint = Joint("N") if joint is None else joint
@@ -295,3 +311,24 @@ class RigidLink(AbstractLink):
         M = jnp.zeros((6, 6), dtype=I3.dtype)
         M = M.at[:3, :3].set(I3)
         return M.at[3:, 3:].set(m * jnp.eye(3))
+
+
+def _check_inertia(inertia) -> None:
+    """Refuse a concrete rotational inertia that is not symmetric positive definite."""
+    if not is_concrete(inertia):
+        return
+    I3 = np.asarray(inertia, dtype=float)
+    check_finite("RigidLink.inertia", I3)
+    scale = float(np.abs(I3).max())
+    if not np.allclose(I3, I3.T, rtol=1e-9, atol=1e-12 * scale):
+        raise ValueError(
+            f"RigidLink.inertia = {I3.tolist()} is not symmetric: give the 3x3 "
+            "rotational inertia at the centre of mass [kg m^2]."
+        )
+    eig = np.linalg.eigvalsh(I3)
+    if eig[0] < -1e-12 * scale:
+        raise ValueError(
+            f"RigidLink.inertia = {I3.tolist()} has a negative eigenvalue "
+            f"{eig[0]:.6g}: give a positive semi-definite 3x3 inertia at the centre "
+            "of mass [kg m^2] (or leave it None for the prism's)."
+        )

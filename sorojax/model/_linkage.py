@@ -14,14 +14,29 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from ._actuation import Cable, CableAnchor, CableSpan, JointActuator
-from ._checks import check_se3, check_shape, is_concrete
+from ._actuation import (
+    Cable,
+    CableAnchor,
+    CableSpan,
+    ConstantPath,
+    HelicalPath,
+    JointActuator,
+    ObliquePath,
+)
+from ._checks import check_finite, check_se3, check_shape, is_concrete
 from ._closure import ClosedLoopJoint
 from ._contact import Contact, resolve_contact
 from ._hook import Hook, as_hook
 from ._layout import Layout, build_layout
 from ._link import AbstractLink, RigidLink, SoftLink
 from ._loads import PointWrench
+from ._profile import Constant, Linear
+from ._section import (
+    AnnularSection,
+    CircularSection,
+    EllipticalSection,
+    RectangularSection,
+)
 
 
 class Linkage(eqx.Module):
@@ -147,6 +162,7 @@ class Linkage(eqx.Module):
             for i in range(n):
                 check_se3(f"Linkage.placements[{i}]", host[i])
         check_shape("Linkage.gravity", gravity, (3,))
+        check_finite("Linkage.gravity", gravity, "give it in m/s^2, e.g. (0, 0, -9.81)")
         if isinstance(point_wrenches, PointWrench):
             point_wrenches = (point_wrenches,)
         point_wrenches = tuple(point_wrenches)
@@ -360,6 +376,7 @@ def _check_actuator(k: int, a, links):
                         f"{f}.divisions = {r.divisions}: link {r.link} has divisions "
                         f"1..{nd}."
                     )
+                _check_cable_path(f, r, links[r.link - 1])
             else:
                 if not 0 <= r.link <= n:
                     raise ValueError(
@@ -375,6 +392,93 @@ def _check_actuator(k: int, a, links):
                     )
         return a
     raise ValueError(f"{field} = {a!r}: give a JointActuator or a Cable.")
+
+
+def _profile_np(profile, X1: float) -> float | None:
+    """A built-in profile's value at ``X1`` on the host; None if unknown or traced."""
+    if isinstance(profile, Constant) and is_concrete(profile.value):
+        return float(profile.value)
+    if (
+        isinstance(profile, Linear)
+        and is_concrete(profile.start)
+        and is_concrete(profile.end)
+    ):
+        start, end = float(profile.start), float(profile.end)
+        return start + (end - start) * X1
+    return None
+
+
+def _extent_np(section, X1: float) -> tuple[float, float] | None:
+    """Half-widths (along y, along z) of a built-in section on the host, or None."""
+    if isinstance(section, CircularSection):
+        r = _profile_np(section.radius, X1)
+        return None if r is None else (r, r)
+    if isinstance(section, AnnularSection):
+        r = _profile_np(section.outer, X1)
+        return None if r is None else (r, r)
+    if isinstance(section, EllipticalSection):
+        a, b = _profile_np(section.a, X1), _profile_np(section.b, X1)
+        return None if a is None or b is None else (a, b)
+    if isinstance(section, RectangularSection):
+        w, h = _profile_np(section.width, X1), _profile_np(section.height, X1)
+        return None if w is None or h is None else (w / 2, h / 2)
+    return None
+
+
+def _path_np(path, X: float) -> np.ndarray | None:
+    """A built-in cable path's ``(y, z)`` at link position ``X`` (host), or None."""
+    leaves = jax.tree.leaves(path)
+    if not all(is_concrete(x) for x in leaves):
+        return None
+    if isinstance(path, ConstantPath):
+        return np.array([float(path.y), float(path.z)])
+    if isinstance(path, ObliquePath):
+        start, end = np.asarray(path.start), np.asarray(path.end)
+        return start + X * (end - start)
+    if isinstance(path, HelicalPath):
+        a = float(path.phase) + 2.0 * np.pi * float(path.turns) * X
+        return float(path.radius) * np.array([np.cos(a), np.sin(a)])
+    return None
+
+
+def _check_cable_path(field: str, span: CableSpan, link: SoftLink) -> None:
+    """Refuse a built-in cable path that leaves its soft link's sections.
+
+    Checked on the host where the path, the section dimensions and the division
+    lengths are concrete built-in values (custom paths and sections are the user's
+    to check): at the start, middle and end of each spanned division the offset
+    must lie within the section's half-widths along y and z (the bounding box, with
+    1e-9 relative slack: a cable on the surface is allowed).
+    """
+    lengths = [d.length for d in link.divisions]
+    if not all(is_concrete(x) for x in lengths):
+        return
+    lengths = [float(x) for x in lengths]
+    starts = np.concatenate([[0.0], np.cumsum(lengths)])
+    first, last = span.divisions or (1, len(lengths))
+    for k in range(first - 1, last):
+        for X1 in (0.0, 0.5, 1.0):
+            d = _path_np(span.path, (starts[k] + X1 * lengths[k]) / starts[-1])
+            if d is None:
+                return
+            if not np.all(np.isfinite(d)):
+                raise ValueError(
+                    f"{field}.path gives the offset (y, z) = {d.tolist()} [m]: give "
+                    "finite offsets."
+                )
+            ext = _extent_np(link.divisions[k].section, X1)
+            if ext is None:
+                continue
+            if abs(d[0]) > ext[0] * (1 + 1e-9) or abs(d[1]) > ext[1] * (1 + 1e-9):
+                raise ValueError(
+                    f"{field}.path puts the cable at offset (y, z) = "
+                    f"({d[0]:.6g}, {d[1]:.6g}) m in division {k + 1} at X1 = {X1}, "
+                    f"outside the section (half-widths {ext[0]:.6g} m along y, "
+                    f"{ext[1]:.6g} m along z: radius or half-width): a CableSpan "
+                    "runs inside its link. Give offsets in metres within the section "
+                    "(e.g. a fraction of the radius), or route a cable outside the "
+                    "body between CableAnchor points."
+                )
 
 
 def _check_closed_loop(k: int, c, n: int) -> None:

@@ -10,7 +10,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from ._checks import check_shape
+from ._checks import check_finite, check_shape
 
 
 class PointWrench(eqx.Module):
@@ -49,6 +49,11 @@ class PointWrench(eqx.Module):
     ):
         if not callable(wrench):
             check_shape("PointWrench.wrench", wrench, (6,))
+            check_finite(
+                "PointWrench.wrench",
+                wrench,
+                "give (moment [N m], force [N]) as finite numbers",
+            )
             wrench = jnp.asarray(wrench, dtype=float)
         if not (0.0 <= float(X1) <= 1.0):
             raise ValueError(f"PointWrench.X1 = {X1!r} is not in [0, 1].")

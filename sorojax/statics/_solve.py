@@ -22,6 +22,7 @@ forward-mode pass of the residual. A user's optimistix solver (``solver=``) runs
 increment with optimistix's own loop.
 """
 
+import math
 import warnings
 
 import equinox as eqx
@@ -52,6 +53,7 @@ from ..dynamics._generalized import kinematics_from_data
 from ..dynamics._wrench_recursion import force_from_wrenches, poses_with_records
 from ..kinematics._api import _as_q
 from ..kinematics._recursion import poses
+from ..model._checks import check_finite, is_concrete
 from ..model._linkage import Linkage
 from ..model._precompute import LinkageData, precompute
 from ._stability import (
@@ -757,6 +759,24 @@ def solve_statics(
     )
 
 
+def _check_settings(max_steps, rtol, atol, load_increment) -> None:
+    """Refuse solver settings that cannot work (concrete values only)."""
+    if not isinstance(max_steps, int | np.integer) or max_steps < 1:
+        raise ValueError(f"max_steps = {max_steps!r}: give an integer >= 1.")
+    for name, value in (("rtol", rtol), ("atol", atol)):
+        if is_concrete(value) and not 0 <= float(value) < math.inf:
+            raise ValueError(
+                f"{name} = {value!r}: give a finite tolerance >= 0 (default 1e-10)."
+            )
+    if is_concrete(rtol) and is_concrete(atol) and float(rtol) + float(atol) == 0:
+        raise ValueError("rtol = atol = 0: Newton can never stop; give either > 0.")
+    if is_concrete(load_increment) and not 0 < float(load_increment) < math.inf:
+        raise ValueError(
+            f"load_increment = {load_increment!r}: give the target coordinate change "
+            "per automatic load increment, finite and > 0 (default 2)."
+        )
+
+
 def _core_arguments(
     linkage, q0, u, t, solver, load_steps, max_load_steps, load_increment,
     max_steps, rtol, atol,
@@ -769,7 +789,9 @@ def _core_arguments(
     # one compiled program (and bad shapes fail before anything compiles).
     # (zeros made on the host: jnp.zeros would compile a program per size)
     q0 = _as_q(linkage, np.zeros(linkage.n_dof) if q0 is None else q0, "q0")
+    check_finite("q0", q0, "give finite initial coordinates (default zeros)")
     u = as_inputs(linkage, None if u is None else jnp.asarray(u, float), q0.dtype)
+    _check_settings(max_steps, rtol, atol, load_increment)
     kwargs = dict(
         t=jnp.asarray(t, dtype=float),
         solver=solver,
