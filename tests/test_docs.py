@@ -7,7 +7,8 @@ a temporary working directory, with matplotlib's Agg backend; nothing is pre-imp
 A block whose first line starts with ``# not run:`` (followed by the reason) is shown
 on the site but not run. Under the suite's ``filterwarnings = error`` a snippet that
 warns fails, as a user would want to know. A failure names the page, the block's number
-on the page and the line in the page's file.
+on the page and the line in the page's file. Each block's time is printed (shown
+with ``-s`` or ``-rP``).
 """
 
 import ast
@@ -18,6 +19,7 @@ import pathlib
 import re
 import subprocess
 import sys
+import time
 import traceback
 
 import pytest
@@ -81,6 +83,7 @@ def test_page_snippets(page, tmp_path, monkeypatch):
             # line numbers in the compiled code are those of the page's file
             tree = ast.parse(code, filename=filename)
             ast.increment_lineno(tree, line0 - 1)
+            start = time.perf_counter()
             try:
                 exec(compile(tree, filename, "exec"), namespace)
             except Exception as e:
@@ -93,6 +96,8 @@ def test_page_snippets(page, tmp_path, monkeypatch):
                     + "".join(traceback.format_exception(e)[-12:]),
                     pytrace=False,
                 )
+            # shown with -s, -rP or on failure: which blocks cost the time
+            print(f"{filename} (line {line0}): {time.perf_counter() - start:.2f} s")
     finally:
         plt.close("all")
 
