@@ -14,8 +14,6 @@ import griffe
 
 _ROLES = "func|class|meth|attr|data|mod|obj|exc|const"
 _ROLE = re.compile(rf":(?:py:)?(?:{_ROLES}):`(~?)([^`<>]+?)`")
-    r":(?:py:)?(?:func|class|meth|attr|data|mod|obj|exc|const):`(~?)([^`<>]+?)`"
-)
 
 
 def _link(match: re.Match) -> str:
