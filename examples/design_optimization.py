@@ -1,4 +1,14 @@
-"""Gradient-based design of a tendon-driven soft arm, through the statics solves.
+"""Gradient-based design of a tendon-driven soft arm, through its statics solves.
+
+What this example teaches:
+
+- how to put design variables into a model's array leaves (``eqx.tree_at``), so
+  that one compiled program serves every design;
+- how to differentiate equilibria with respect to the design: ``jax.jacfwd``
+  through ``jax.vmap`` of ``sorojax.solve_statics`` (implicit function theorem,
+  no finite differences);
+- how to drive optimistix's Levenberg-Marquardt one step at a time (to warm-start
+  the solves and record progress), and scipy's optimisers with the same programs.
 
 The arm: 0.9 m hanging along world -z under gravity, two soft links of one division
 each (0.4 m + 0.5 m, so that each has its own Young's modulus), circular radius
@@ -12,7 +22,7 @@ link between the offsets at base, middle and tip.
 
 Design variables (13, each between physical bounds, :data:`LOWER`, :data:`UPPER`):
 the base and tip offset fractions of the four cables (0.3-0.9 of the radius), the
-base, middle and tip radii, and E of each link (0.5-2 MPa). The optimiser works on
+base, middle and tip radii, and E of each link (0.5-2 MPa). The optimisers work on
 unconstrained z with theta = lo + (hi - lo) sigmoid(z) (for E on log E), so every
 iterate is a buildable arm.
 
@@ -23,33 +33,28 @@ is 0. Objective: the mean squared tip distance [mm^2] over the 8 sets.
 
 Every evaluation solves the 8 statics at once (``jax.vmap`` over
 ``sorojax.solve_statics``, ``throw=False``, result codes checked, each solve
-warm-started from the last evaluation's equilibrium) inside one jitted program: the
-design enters the model only through array leaves (``eqx.tree_at``), so one compiled
-program serves every evaluation. Gradients come from the implicit function theorem
-through the solves (no finite differences). Optimisers, from the same start:
+warm-started from the last evaluation's equilibria). Optimisers, from the same
+start:
 
-- Levenberg-Marquardt (written here) on the 24 tip residuals, with the Jacobian
-  ``jax.jacfwd`` through the solves;
-- scipy's L-BFGS-B on the objective with its gradient from the same program;
-- scipy's Nelder-Mead (derivative-free; a value-only program) for comparison.
+- Levenberg-Marquardt (``optimistix.IndirectLevenbergMarquardt``) on the 24 tip
+  residuals [mm], its Jacobian by forward mode through the solves;
+- scipy's L-BFGS-B on the objective with its gradient from ``jax.jacfwd``;
+- scipy's Nelder-Mead (derivative-free) for comparison.
 
 A solve is one statics solve of one tension set (SoRoSim's count: its published
 design study took 2887 solves, 93 s, with MATLAB's patternsearch on its own
-problem); seconds are wall time with the programs already compiled.
+problem); seconds are wall time with the programs already compiled. The found
+design fits the tips, not the reference's every value: E and the radii trade off
+(the problem is sloppy).
 
-Measured (2-core CPU shared with other jobs, 2026-11): Levenberg-Marquardt reaches
-J <= 1e-2 mm^2 (tip RMS 0.1 mm) after 56 solves, 0.08 s, and 8.5e-7 mm^2 (tip RMS
-0.9 um) after 224 solves, 0.24 s; L-BFGS-B 456 solves to 1e-2; Nelder-Mead 7088
-solves, 4.6 s, to 1e-2, and 6.6e-5 mm^2 after its 2000 evaluations (16000 solves,
-9 s), a level LM passes after 64 solves. The found design fits the tips, not the
-reference's every value: E and the radii trade off (the problem is sloppy).
-The first calls of the two programs (trace, compile, run) take ~5-6 s and ~9 s on a
-2-core CPU (2026-11-25, stop 31; the second took ~14-16 s before the statics'
-implicit derivative reused Newton's Jacobian): the example's first run (28-43 s) is
-these and the optimisers' own 12-16 s, Nelder-Mead's 16000 solves most of it. Since
-stop 35 the Jacobian's program is traced first and compiled in a worker thread
-(``sorojax.prepare``) while the value program compiles and runs: 20.2 -> 17.3 s for
-the two first calls back to back on a slow hour (2026-11-26).
+What to expect (``python examples/design_optimization.py``, 2-core CPU shared with
+other jobs): Levenberg-Marquardt reaches J <= 1e-2 mm^2 (tip RMS 0.1 mm) after 136
+solves and 9.4e-7 mm^2 (tip RMS 1 um) after 256 solves (32 evaluations, 1.6 s);
+L-BFGS-B needs 456 solves to reach 1e-2 mm^2, Nelder-Mead 7088 (10 s), and
+Nelder-Mead ends at 6.6e-5 mm^2 after its 2000 evaluations (16000 solves, 21 s), a
+level Levenberg-Marquardt passes after 136 solves. Tracing and compiling the three
+programs (value; residuals and Jacobian; Levenberg-Marquardt step) takes 1-2 min
+on the first run; later runs load them from the persistent compilation cache.
 
 Run::
 
@@ -72,6 +77,7 @@ import equinox as eqx  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import matplotlib  # noqa: E402
 import numpy as np  # noqa: E402
+import optimistix as optx  # noqa: E402
 import scipy.optimize  # noqa: E402
 
 matplotlib.use("Agg")
@@ -241,9 +247,45 @@ def _residuals_and_jacobian(z, arm, targets, q0):
     return r, jac, q, ok
 
 
+def tip_residuals(z, args):
+    """Tip residuals (24,) [mm] at the unconstrained design ``z``.
+
+    ``args = (arm, targets, q0)``; the aux output is ``(equilibria (8, n_dof),
+    success flags (8,))``. This is the function optimistix's Levenberg-Marquardt
+    minimises (half its sum of squares), differentiating it forward through the
+    statics solves.
+    """
+    arm, targets, q0 = args
+    r, (_, _, q, ok) = _residuals(z, arm, targets, q0)
+    return r, (q, ok)
+
+
+# Levenberg-Marquardt as a trust-region method: each step fits the damping mu of
+# (J^T J + mu I) dz = -J^T r to a trust radius on dz, grown or shrunk by how well the
+# linear model predicted the decrease. This problem is sloppy (the Jacobian's
+# singular values run from 1e2 down to 1e-5 at the reference): bounding the step's
+# length, as this variant does, keeps the first steps from running along the weak
+# directions to the bounds, where the sigmoid flattens. (optx.LevenbergMarquardt,
+# which updates mu directly, reaches 2e-4 mm^2 in 40 steps here; this one 1e-6.)
+# The loop below stops on the objective; the solver's own Cauchy termination
+# (change of z and of the residuals) only at 1e-12.
+LM = optx.IndirectLevenbergMarquardt(rtol=1e-12, atol=1e-12)
+
+
+def _lm_init(z, args):
+    f_struct, aux_struct = jax.eval_shape(tip_residuals, z, args)
+    return LM.init(tip_residuals, z, args, {}, f_struct, aux_struct, frozenset())
+
+
+def _lm_step(z, state, args):
+    z, state, _ = LM.step(tip_residuals, z, args, {}, state, frozenset())
+    done, result = LM.terminate(tip_residuals, z, args, {}, state, frozenset())
+    return z, state, done, result
+
+
 @functools.cache
 def programs():
-    """``(evaluate, residuals_and_jacobian)``: the two jitted programs.
+    """``(evaluate, residuals_and_jacobian, lm_init, lm_step)``: jitted programs.
 
     ``evaluate(z, arm, targets, q0)`` -> (objective [mm^2], tips (8, 3) [m],
     equilibria (8, n_dof), success flags (8,)): the value-only program (Nelder-Mead,
@@ -254,11 +296,17 @@ def programs():
     warm-starts the 8 solves. Both are ``sorojax.jit`` programs at XLA's default
     level (``tiered=False``: the optimisers call them hundreds of times), so that
     ``sorojax.prepare`` can compile the Jacobian's in a worker thread while the
-    value program compiles and runs.
+    value program compiles and runs. ``lm_init(z, args)`` and ``lm_step(z, state,
+    args)`` are one Levenberg-Marquardt step of optimistix, stepped from Python
+    (``args`` as :func:`tip_residuals`): ``lm_step`` evaluates the residuals at the
+    trial point with their Jacobian (``jax.linearize`` through the solves), accepts
+    or rejects the point and returns ``(z, state, done, result)``.
     """
     return (
         sj.jit(_evaluate, tiered=False),
         sj.jit(_residuals_and_jacobian, tiered=False),
+        sj.jit(_lm_init, tiered=False),
+        sj.jit(_lm_step, tiered=False),
     )
 
 
@@ -280,7 +328,8 @@ class Problem:
         self.history, self.failed = [], 0
         self.t0 = time.perf_counter()
 
-    def _record(self, J, q, ok):
+    def record(self, J, q, ok):
+        """Append one evaluation (objective J, equilibria q, success flags ok)."""
         if bool(np.all(np.asarray(ok))):  # a failed solve is no warm start
             self.q = q
         else:
@@ -293,48 +342,42 @@ class Problem:
     def value(self, z):
         """Objective [mm^2] (inf where a solve failed)."""
         J, _, q, ok = programs()[0](jnp.asarray(z), self.arm, self.targets, self.q)
-        return self._record(J, q, ok)
+        return self.record(J, q, ok)
 
     def residuals(self, z):
         """Residuals (24,) [mm] and their Jacobian (24, 13), None where failed."""
         r, jac, q, ok = programs()[1](jnp.asarray(z), self.arm, self.targets, self.q)
         r, jac = np.asarray(r), np.asarray(jac)
-        J = self._record(np.sum(r**2) / self.n, q, ok)
+        J = self.record(np.sum(r**2) / self.n, q, ok)
         return (r, jac) if np.isfinite(J) else (None, None)
 
 
 # --------------------------------------------------------------- optimisers
-def levenberg_marquardt(problem, z0, max_evals=40, J_tol=1e-6, tau=1e-2, cap=1.0):
-    """Levenberg-Marquardt on the tip residuals; stops when J <= ``J_tol`` mm^2.
+def levenberg_marquardt(problem, z0, max_evals=40, J_tol=1e-6):
+    """Optimistix's Levenberg-Marquardt on the tip residuals, one step at a time.
 
-    Step (J^T J + mu I) dz = -J^T r, shortened to max |dz_i| <= ``cap`` (the sigmoid
-    map is far from linear over larger steps); mu starts at ``tau`` max diag(J^T J)
-    and follows the gain ratio rho (H. B. Nielsen 1999, "Damping parameter in
-    Marquardt's method", IMM-REP-1999-05, DTU: mu *= max(1/3, 1 - (2 rho - 1)^3) on
-    success, else mu *= nu, nu *= 2).
-    Identity damping, not Marquardt's diag(J^T J): the problem is sloppy (singular
-    values of J from 1e2 down to 1e-5 at the reference), and scaling by the diagonal
-    let the first steps run along the weak directions to the bounds, where the
-    sigmoid flattens and the search stalls. Every trial costs one evaluation (8
-    solves), accepted or not.
+    Stepping the solver from Python (``init``/``step``/``terminate``, each step one
+    compiled program) rather than calling ``optx.least_squares`` lets each step
+    warm-start its 8 solves from the last accepted equilibria (passed in ``args``)
+    and record the objective, the solves and the time. Every step is one evaluation
+    (8 solves), accepted or not; stops when J <= ``J_tol`` mm^2, when the solver
+    converges or after ``max_evals`` evaluations.
     """
-    z = np.asarray(z0, dtype=float)
-    r, jac = problem.residuals(z)
-    if r is None:
-        raise RuntimeError("a statics solve failed at the initial design")
-    mu, nu = tau * np.max(np.diag(jac.T @ jac)), 2.0
-    while len(problem.history) < max_evals and np.sum(r**2) / problem.n > J_tol:
-        dz = np.linalg.solve(jac.T @ jac + mu * np.eye(len(z)), -jac.T @ r)
-        dz *= min(1.0, cap / np.max(np.abs(dz)))
-        r_new, jac_new = problem.residuals(z + dz)
-        pred = np.sum(r**2) - np.sum((r + jac @ dz) ** 2)
-        rho = -1.0 if r_new is None else (np.sum(r**2) - np.sum(r_new**2)) / pred
-        if rho > 1e-4:
-            z, r, jac = z + dz, r_new, jac_new
-            mu, nu = mu * max(1 / 3, 1 - (2 * rho - 1) ** 3), 2.0
-        else:
-            mu, nu = mu * nu, 2 * nu
-    return z
+    _, _, lm_init, lm_step = programs()
+    z = jnp.asarray(z0, dtype=float)
+    args = (problem.arm, problem.targets, problem.q)
+    state = lm_init(z, args)
+    for _ in range(max_evals):
+        z, state, done, result = lm_step(z, state, args)
+        r = state.f_info.residual  # at the last accepted point
+        q, ok = state.aux
+        J = problem.record(jnp.sum(r**2) / problem.n, q, ok)
+        args = (problem.arm, problem.targets, problem.q)
+        if J <= J_tol or bool(done):
+            break
+    if result != optx.RESULTS.successful:
+        raise RuntimeError(f"Levenberg-Marquardt failed: {result}")
+    return np.asarray(z)
 
 
 def lbfgs(problem, z0, max_evals=200):
@@ -398,14 +441,18 @@ def main(argv=None):
     print(f"arm: {n_dof} DoF, {len(NAMES)} design variables, {n} tension sets")
     q_cold = jnp.zeros((n, n_dof))
     z0 = z_of(INITIAL)
-    evaluate, residuals_and_jacobian = programs()
-    # first calls: trace + compile (or load from the cache) + run. The Jacobian's
-    # program is traced here and compiled in a worker thread meanwhile (its call
-    # below waits for what is left of that compile).
+    evaluate, residuals_and_jacobian, lm_init, lm_step = programs()
+    # first calls: trace + compile (or load from the cache) + run. The programs
+    # with Jacobians (for L-BFGS-B and for Levenberg-Marquardt's step) are traced
+    # here and compiled in worker threads meanwhile; their first calls wait for
+    # what is left of those compiles.
     cold = {}
     t = time.perf_counter()
     zeros = jnp.zeros((n, 3))
     sj.prepare(residuals_and_jacobian, jnp.asarray(z0), arm, zeros, q_cold)
+    lm_args = (arm, zeros, q_cold)  # shapes as the optimisation's
+    lm_state = lm_init(jnp.asarray(z0), lm_args)
+    lm_ready = sj.prepare(lm_step, jnp.asarray(z0), lm_state, lm_args)
     # the targets: the reference design's tips (the value program, any targets)
     _, targets, _, ok = evaluate(jnp.asarray(z_of(REFERENCE)), arm, zeros, q_cold)
     ok = np.asarray(ok)  # waits for the result
@@ -415,10 +462,15 @@ def main(argv=None):
     t = time.perf_counter()
     jax.block_until_ready(residuals_and_jacobian(jnp.asarray(z0), arm, targets, q_cold))
     cold["jacobian"] = time.perf_counter() - t
+    t = time.perf_counter()
+    if lm_ready is not None:
+        lm_ready.result()  # the rest of the step's compile
+    cold["lm_step"] = time.perf_counter() - t
     print(
-        "first calls (trace + compile + run): value (after tracing the Jacobian's "
-        f"program) {cold['value']:.1f} s, residuals + Jacobian (the rest of its "
-        f"compile in a worker thread) {cold['jacobian']:.1f} s"
+        "first calls (trace + compile + run): value (after tracing the Jacobian "
+        f"programs) {cold['value']:.1f} s, then waiting for the compiles in worker "
+        f"threads: residuals + Jacobian {cold['jacobian']:.1f} s, Levenberg-Marquardt "
+        f"step {cold['lm_step']:.1f} s"
     )
 
     problem = Problem(arm, targets)

@@ -1,16 +1,20 @@
 """Learning through the simulator: an MLP policy that moves a cable-driven arm's tip.
 
+What this example teaches: how to wrap a model as a :class:`sorojax.Environment`,
+roll a policy out with ``jax.lax.scan`` over ``Environment.step``, differentiate a
+loss through whole rollouts (analytic policy gradients: no reinforcement-learning
+estimator, the simulator's exact derivatives) and train an equinox model on them
+with optax's Adam.
+
 The four-cable tapered arm of ``cable_manipulator.py`` (hanging under gravity,
-material damping) becomes a :class:`sorojax.Environment` (control period 50 ms,
-tensions held over a period and clipped at zero). An equinox MLP maps the
-observation (coordinates, velocities, tip position, target) to the four tensions
-(softplus: never negative) and is trained by **analytic policy gradients**: the
-loss (mean squared tip distance to the target over a 1 s episode, later periods
-weighted more, plus a small effort term) is differentiated through the rollouts
-(``jax.lax.scan`` over ``Environment.step``, ``jax.vmap`` over a batch of
-targets) with ``jax.value_and_grad``, and the policy takes Adam steps (written out
-below; optax, the standard JAX optimiser library, is an optional extra:
-``optax.adam(lr)`` with ``optax.apply_updates`` replaces them one to one).
+material damping) becomes an environment (control period 50 ms, tensions held over
+a period and clipped at zero). An equinox MLP maps the observation (coordinates,
+velocities, tip position, target) to the four tensions (softplus: never negative).
+The loss is the mean squared tip distance to the target over a 1 s episode (later
+periods weighted more) plus a small effort term, averaged over a batch of targets
+(``jax.vmap``); ``jax.value_and_grad`` gives its gradient with respect to the MLP's
+weights, and ``optax.adam`` turns the gradients into steps (optax is in sorojax's
+``learn`` extra: ``pip install sorojax[learn]``).
 
 Targets are reachable by construction: the equilibrium tip positions of random
 tension vectors (one batched statics solve). The trained policy is evaluated on
@@ -36,6 +40,7 @@ import equinox as eqx  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import matplotlib  # noqa: E402
 import numpy as np  # noqa: E402
+import optax  # noqa: E402
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -125,18 +130,6 @@ def loss_fn(policy, env, s0, targets):
     return jnp.mean(d2 * WEIGHTS[None]) / jnp.mean(WEIGHTS) + 1e-7 * jnp.mean(u**2)
 
 
-def adam_step(params, grads, m, v, k, lr, b1=0.9, b2=0.999, eps=1e-8):
-    """One Adam step on a pytree of arrays (Kingma & Ba 2015, Algorithm 1)."""
-    m = jax.tree.map(lambda m_, g: b1 * m_ + (1 - b1) * g, m, grads)
-    v = jax.tree.map(lambda v_, g: b2 * v_ + (1 - b2) * g * g, v, grads)
-    mh = jax.tree.map(lambda m_: m_ / (1 - b1**k), m)
-    vh = jax.tree.map(lambda v_: v_ / (1 - b2**k), v)
-    params = jax.tree.map(
-        lambda p, a, b: p - lr * a / (jnp.sqrt(b) + eps), params, mh, vh
-    )
-    return params, m, v
-
-
 def pd_policy(env, state, target, T_ff, feedforward):
     """The PD law of cable_manipulator.py (lateral tip position) as a policy.
 
@@ -207,24 +200,25 @@ def main(argv=None):
     # split on the host (a slice of a JAX array would compile an operation each)
     pool, test_targets = (jnp.asarray(a) for a in np.split(tips, [len(pool_T)]))
     policy = Policy(env.linkage.n_dof, k_pol)
+    # the MLP's arrays are trained; its structure (activation, sizes) stays static
     params, static = eqx.partition(policy, eqx.is_array)
+    optimiser = optax.adam(args.lr)
+    opt_state = optimiser.init(params)
 
     @functools.partial(jax.jit, compiler_options=sj.compiler_options())
-    def train_step(params, m, v, k, key):
+    def train_step(params, opt_state, key):
         idx = jax.random.choice(key, pool.shape[0], (args.batch,), replace=False)
         loss, grads = jax.value_and_grad(
             lambda p: loss_fn(eqx.combine(p, static), env, s0, pool[idx])
         )(params)
-        params, m, v = adam_step(params, grads, m, v, k, args.lr)
-        return params, m, v, loss
+        updates, opt_state = optimiser.update(grads, opt_state, params)
+        return optax.apply_updates(params, updates), opt_state, loss
 
-    m = jax.tree.map(jnp.zeros_like, params)
-    v = jax.tree.map(jnp.zeros_like, params)
     losses, t_compile = [], None
     keys = jax.random.split(jax.random.key(args.seed + 1), args.iterations)
     t_train = time.perf_counter()
     for k in range(args.iterations):
-        params, m, v, loss = train_step(params, m, v, jnp.asarray(k + 1.0), keys[k])
+        params, opt_state, loss = train_step(params, opt_state, keys[k])
         losses.append(float(loss))
         if k == 0:
             t_compile = time.perf_counter() - t_train

@@ -1,51 +1,49 @@
 """System identification: E, damping and a tip mass from a noisy tip trajectory.
 
-A soft rod (0.5 m, radius 1 cm, rho 1000 kg/m^3, clamped horizontally along x,
-gravity -z) carries a small rigid body at its tip (a 2 x 2 cm cylinder on a fixed
-joint). It bends in the x-z plane only: bending about y with quadratic Legendre
-strain, 3 DoF. Released straight and at rest, it sags and swings about its hanging
-shape, damped by the Kelvin-Voigt material damping. Three parameters are recovered
-from the measured tip position (x, z): Young's modulus E, the damping eta and the tip
-mass m (true values 10 MPa, 1e5 Pa s, 50 g).
+What this example teaches: how to fit a model's physical parameters to measured
+motion with optimistix's Levenberg-Marquardt (``optx.least_squares``), its Jacobian
+taken by forward-mode autodiff through ``sorojax.simulate``, and how to read the
+fit's uncertainty from that Jacobian.
+
+The robot: a soft rod (0.5 m, radius 1 cm, rho 1000 kg/m^3, clamped horizontally
+along x, gravity -z) carrying a small rigid body at its tip (a 2 x 2 cm cylinder on
+a fixed joint). It bends in the x-z plane only: bending about y with quadratic
+Legendre strain, 3 DoF. Released straight and at rest, it sags and swings about its
+hanging shape, damped by the Kelvin-Voigt material damping. Three parameters are
+recovered from the measured tip position (x, z): Young's modulus E, the damping eta
+and the tip mass m (true values 10 MPa, 1e5 Pa s, 50 g).
 
 Data: the tip at ``--samples`` evenly spaced times over ``--t1`` seconds, simulated
 with the true parameters at a quarter of the fit's step, plus Gaussian noise whose
 standard deviation is ``--noise`` (default 1 %) of each coordinate's range over the
-trajectory. Fit: Levenberg-Marquardt on the log parameters (positive by
-construction, and relative errors become absolute ones), starting 40 % low in E,
-50 % high in eta and 30 % low in m. The residuals are divided by the noise level,
-so at the optimum their RMS is ~1 and ``(J^T J)^-1`` estimates the covariance of
-the log parameters (its square-rooted diagonal: the relative standard deviation).
+trajectory.
 
-The Jacobian is forward-mode autodiff through ``sj.simulate`` (``diffrax.ForwardMode``
-adjoint), the three parameters' ``jax.jvp`` under ``jax.vmap`` (forward mode is
-cheap: one primal integration, the tangents batched). Under ``lax.map`` instead
-(each jvp with its own primal) the program compiled in the same time (4.5-5.6 s
-against 5.0-5.7 s on a 2-core CPU, 2026-11-25) and ran 10-25 % slower (0.55-0.64
-against 0.45-0.59 s per evaluation); earlier versions of sorojax and JAX had
-compiled the vmapped jvps in 44 s. The model's structure
-never changes: the parameters enter by ``eqx.tree_at`` on array leaves inside one
-compiled program, which serves the data and every LM step.
-Steps are constant (``adaptive=False``, ``--dt``, ROS34PW2: L-stable, so the damped
-fast modes do not limit the step): adaptive step control makes the trajectory a
-piecewise smooth function of the parameters (the accepted step sequence jumps), which
-spoils both the Gauss-Newton model and any finite-difference check (measured at
-rtol 1e-6: forward mode and central differences differ by ~1e-6 of the Jacobian
-whatever the difference step, against 7e-9 at step 1e-4 with constant steps, and
-it took 1614 steps for 1.5 s against 75). At the default step (20 ms) the
-integration error (against a quarter step) is ~1.3e-4 m, 3 % of the noise; at 10 ms
-it is 2e-5 m, and the fitted values move by at most 0.1 %, a tenth of their
-standard deviations, while each evaluation takes twice as long (263 against 148 ms,
-2-core CPU, 2026-11-26; the whole first run 12.2 against 10.2 s). E and m are 98 %
-correlated (the hanging sag fixes mainly their ratio); the swing's frequency and
-decay separate them.
+Fit: the unknowns are the log parameters (positive by construction, and relative
+errors become absolute ones), starting 40 % low in E, 50 % high in eta and 30 % low
+in m. The residuals are divided by the noise level, so at the optimum their RMS is
+~1 and ``(J^T J)^-1`` estimates the covariance of the log parameters (its
+square-rooted diagonal: the relative standard deviations). E and m come out
+strongly correlated (the hanging sag fixes mainly their ratio); the swing's
+frequency and decay separate them.
 
-Prints the recovered values, their errors and standard deviations, the iterations,
-the residual RMS against the noise and the wall times (data and fit, including the
-compile or a load from the persistent cache; the median of the fit's evaluations of
-the residuals and their Jacobian, all with the program compiled by the data's call);
-writes the measured and fitted tip trajectories and the parameter errors per
-iteration to a PNG.
+Three choices make the fit work:
+
+- The parameters enter the model by ``eqx.tree_at`` on array leaves, so the model's
+  structure never changes and one compiled program serves every evaluation.
+- ``adjoint=diffrax.ForwardMode()``: derivatives by forward mode, cheap for three
+  parameters (one primal integration, the tangents batched).
+- Constant steps (``adaptive=False``, ``--dt``, ROS34PW2: L-stable, so the damped
+  fast modes do not limit the step). With adaptive steps the accepted step sequence
+  jumps as the parameters change, so the trajectory is only piecewise smooth in
+  them, which spoils the Gauss-Newton model and any finite-difference check. At the
+  default 20 ms step the integration error (against a quarter step) is ~1.3e-4 m,
+  3 % of the noise.
+
+Prints the recovered values, their errors and standard deviations, the solver's
+steps, the residual RMS against the noise and the wall time of the data and the fit
+(each including its compile, or a load from the persistent cache); writes the
+measured, fitted and initial tip trajectories and the recovered parameters with
+their error bars to a PNG.
 
 Run::
 
@@ -67,6 +65,7 @@ import equinox as eqx  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import matplotlib  # noqa: E402
 import numpy as np  # noqa: E402
+import optimistix as optx  # noqa: E402
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -158,44 +157,41 @@ def tip_and_jacobian(log_p, ts, dt):
     return _compiled()(log_p, jnp.asarray(ts, dtype=float), jnp.asarray(dt, float))
 
 
-def levenberg_marquardt(residuals, x0, max_iterations=40, xtol=1e-4, max_step=0.5):
-    """Minimise ``|r(x)|^2 / 2`` by Levenberg-Marquardt (Marquardt's scaling).
+def residuals(log_p, args):
+    """Tip misfit in noise units ``(2 n,)``: ``(tip(log_p) - measured) / sigma``.
 
-    Args:
-        residuals: ``x -> (r (N,), J (N, n))``.
-        x0: starting point ``(n,)``.
-        max_iterations: most evaluations of ``residuals`` after the first.
-        xtol: stop when an accepted step's largest component is below this (default
-            1e-4: in log parameters, a relative change of 0.01 %, a hundredth of the
-            fit's standard deviations here; 1e-6 took one more evaluation for the
-            same values to 4 digits of their errors).
-        max_step: largest change of any component in one step.
-
-    Returns:
-        ``(x, r, J, path, evaluations, converged)``; ``path`` holds the accepted
-        iterates; ``converged`` is False when ``max_iterations`` ran out first.
+    ``args = (ts, measured (n, 2) [m], sigma (2,) [m], dt [s])``.
     """
-    x = np.asarray(x0, dtype=float)
-    r, J = residuals(x)
-    cost, lam, path, evaluations = 0.5 * r @ r, 1e-3, [x], 1
-    while evaluations <= max_iterations:
-        A, g = J.T @ J, J.T @ r
-        step = np.linalg.solve(A + lam * np.diag(np.diag(A)), -g)
-        # Trust the linear model within a factor e^max_step per parameter: from a
-        # poor start the Gauss-Newton step can run a mass to ~0 (measured: 1e-6 m).
-        step *= min(1.0, max_step / np.abs(step).max())
-        r_new, J_new = residuals(x + step)
-        evaluations += 1
-        cost_new = 0.5 * r_new @ r_new
-        if np.isfinite(cost_new) and cost_new < cost:
-            x, r, J, cost = x + step, r_new, J_new, cost_new
-            path.append(x)
-            lam = max(lam / 3.0, 1e-9)
-            if np.abs(step).max() < xtol:
-                return x, r, J, np.array(path), evaluations, True
-        else:  # rejected (or the integration failed): shorter, more gradient-like
-            lam *= 4.0
-    return x, r, J, np.array(path), evaluations, False
+    ts, measured, sigma, dt = args
+    return ((tip_xz(log_p, ts, dt) - measured) / sigma).ravel()
+
+
+@functools.cache
+def _fit_program():
+    @functools.partial(
+        jax.jit, static_argnames="max_steps", compiler_options=sj.compiler_options()
+    )
+    def fit(x0, args, max_steps):
+        # The Jacobian of the residuals: forward mode through simulate (linearize).
+        solver = optx.LevenbergMarquardt(rtol=1e-6, atol=1e-6)
+        sol = optx.least_squares(
+            residuals, solver, x0, args, max_steps=max_steps, throw=False
+        )
+        return sol.value, sol.result, sol.stats["num_steps"]
+
+    return fit
+
+
+def fit(x0, ts, measured, sigma, dt, max_steps=40):
+    """Levenberg-Marquardt from ``x0``: ``(log parameters, result code, steps)``.
+
+    One compiled program (the whole loop); ``max_steps`` evaluations of the
+    residuals with their Jacobian at most. It stops when both the step in the log
+    parameters and the change of the residuals are below 1e-6 (relative, or
+    absolute: 1e-6 of the noise), far below the fit's standard deviations.
+    """
+    args = tuple(jnp.asarray(a, dtype=float) for a in (ts, measured, sigma, dt))
+    return _fit_program()(jnp.asarray(x0, dtype=float), args, max_steps)
 
 
 def main(argv=None):
@@ -220,38 +216,29 @@ def main(argv=None):
     x0 = x_true + np.log(START)
 
     # Data: the true trajectory at a quarter step (the same compiled program) + noise.
-    t_start = time.perf_counter()
+    t = time.perf_counter()
     clean = np.asarray(tip_and_jacobian(x_true, ts, args.dt / 4)[0])
     sigma = args.noise * np.ptp(clean, axis=0)  # per coordinate [m]
     rng = np.random.default_rng(args.seed)
     measured = clean + sigma * rng.standard_normal(clean.shape)
+    seconds_data = time.perf_counter() - t
 
-    evaluated = {}  # (log p, dt) -> (tips, J): the figure reuses the fit's
-    seconds = []  # wall time of each fit evaluation (compiled by the data's call)
+    # The fit: optimistix's Levenberg-Marquardt, one compiled program.
+    t = time.perf_counter()
+    x, result, steps = fit(x0, ts, measured, sigma, args.dt)
+    x, steps = np.asarray(x), int(steps)
+    seconds_fit = time.perf_counter() - t
+    converged = bool(result == optx.RESULTS.successful)
 
-    def evaluate(x, dt):
-        key = (np.asarray(x, dtype=float).tobytes(), float(dt))
-        if key not in evaluated:
-            t = time.perf_counter()
-            evaluated[key] = tuple(np.asarray(a) for a in tip_and_jacobian(x, ts, dt))
-            seconds.append(time.perf_counter() - t)
-        return evaluated[key]
-
-    def residuals(x):
-        tips, J = evaluate(x, args.dt)
-        r = ((tips - measured) / sigma).ravel()
-        return r, (J / sigma[:, None]).reshape(r.size, -1)
-
-    x, r, J, xs, evaluations, converged = levenberg_marquardt(residuals, x0)
-    seconds_fit = time.perf_counter() - t_start
-    # warm cost of one (r, J): the median of the fit's evaluations (the data's call,
-    # at a quarter step, compiled the program)
-    seconds_eval = float(np.median(seconds[1:]))
-    if not np.all(np.isfinite(r)):
-        raise RuntimeError("the fit's last integration failed")
+    # Uncertainty: the Jacobian at the optimum, in noise units.
+    tips, J = (np.asarray(a) for a in tip_and_jacobian(x, ts, args.dt))
+    if not np.all(np.isfinite(tips)):
+        raise RuntimeError("the integration at the fitted parameters failed")
+    r = ((tips - measured) / sigma).ravel()
+    J = (J / sigma[:, None]).reshape(r.size, -1)
     std = np.sqrt(np.diag(np.linalg.inv(J.T @ J)))  # of log p: relative
     rel_err = np.exp(x - x_true) - 1.0
-    step_error = np.abs(evaluate(x_true, args.dt)[0] - clean)
+    step_error = np.abs(np.asarray(tip_and_jacobian(x_true, ts, args.dt)[0]) - clean)
     rms = float(np.sqrt(np.mean(r**2)))
 
     print(
@@ -267,14 +254,14 @@ def main(argv=None):
             f"(1-sigma {std[i]:.2%})"
         )
     print(
-        f"{len(xs) - 1} accepted LM steps, {evaluations} evaluations of (r, J); "
-        f"residual RMS {rms:.3f} x noise; {seconds_fit:.1f} s (data and fit, incl. "
-        f"compile or cache load); one (r, J) compiled: {1e3 * seconds_eval:.0f} ms "
-        "(median of the fit's)"
+        f"Levenberg-Marquardt: {steps} steps, "
+        f"{'converged' if converged else 'NOT converged'}; residual RMS {rms:.3f} x "
+        f"noise; wall time (incl. compile or cache load) data {seconds_data:.1f} s, "
+        f"fit {seconds_fit:.1f} s"
     )
 
-    fitted = evaluate(x, args.dt)[0]
-    initial = evaluate(x0, args.dt)[0]
+    fitted = tips
+    initial = np.asarray(tip_and_jacobian(x0, ts, args.dt)[0])
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2))
     for k, (label, color) in enumerate((("x", "tab:blue"), ("z", "tab:orange"))):
         a1.plot(ts, measured[:, k], ".", color=color, ms=4, label=f"measured {label}")
@@ -286,14 +273,14 @@ def main(argv=None):
     a1.set_ylim(lo - 0.05 * (hi - lo), hi + 0.35 * (hi - lo))  # room for the legend
     a1.legend(fontsize=8, ncol=3, loc="upper center")
     a1.grid(alpha=0.3)
-    errors = np.abs(np.exp(xs - x_true) - 1.0)
-    for i, name in enumerate(NAMES):
-        (line,) = a2.semilogy(errors[:, i], "o-", ms=4, label=name)
-        a2.axhline(std[i], color=line.get_color(), ls=":", lw=1)
-    a2.set_xlabel("accepted Levenberg-Marquardt step")
-    a2.set_ylabel("|relative error|  (dotted: 1-sigma estimate)")
+    k = np.arange(len(NAMES))
+    a2.errorbar(k, 100 * rel_err, yerr=100 * std, fmt="o", capsize=4, label="fitted")
+    a2.plot(k, 100 * (np.asarray(START) - 1.0), "x", ms=8, label="start")
+    a2.axhline(0.0, color="k", lw=1)
+    a2.set_xticks(k, NAMES)
+    a2.set_ylabel("error vs true value [%]  (bars: 1-sigma)")
     a2.legend()
-    a2.grid(alpha=0.3, which="both")
+    a2.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -305,15 +292,14 @@ def main(argv=None):
         "rel_error": dict(zip(NAMES, rel_err.tolist(), strict=True)),
         "rel_std": dict(zip(NAMES, std.tolist(), strict=True)),
         "log_p": x,
-        "iterations": len(xs) - 1,
-        "evaluations": evaluations,
+        "steps": steps,
         "converged": converged,
         "residual_rms": rms,
         "sigma": sigma,
         "ts": ts,
         "dt": args.dt,
+        "seconds_data": seconds_data,
         "seconds_fit": seconds_fit,
-        "seconds_evaluation": seconds_eval,
     }
 
 
