@@ -163,7 +163,7 @@ def residuals(log_p, args):
     ``args = (ts, measured (n, 2) [m], sigma (2,) [m], dt [s])``.
     """
     ts, measured, sigma, dt = args
-    return ((tip_xz(log_p, ts, dt) - measured) / sigma).ravel()
+    return ((tip_xz(log_p, ts, dt) - measured) / sigma[None, :]).ravel()
 
 
 @functools.cache
