@@ -27,9 +27,16 @@ def _link(match: re.Match) -> str:
     )
 
 
+_LITERAL = re.compile(r"(?<=\S)::$", re.M)
+
+
 def rewrite(text: str) -> str:
-    """The docstring text with its Sphinx roles as optional cross-references."""
-    return _ROLE.sub(_link, text)
+    """The docstring text with its Sphinx roles as optional cross-references.
+
+    A paragraph that ends in ``::`` (reStructuredText's literal-block marker) ends in
+    ``:``; the indented block after it is a code block in Markdown too.
+    """
+    return _LITERAL.sub(":", _ROLE.sub(_link, text))
 
 
 class SphinxRoles(griffe.Extension):
