@@ -325,6 +325,29 @@ def test_crossing_rods_press_without_passing_through(x):
     assert z2_mid > z1 - 1e-3
 
 
+def test_rod_pair_stiffness_in_w_matches_the_force_derivative():
+    """ROS34PW2's W carries the rod pair's contact stiffness: the Gauss-Newton K_c
+    equals the derivative of the generalised contact force, -dQ/dq, up to the
+    geometric terms it leaves out (force / radius = 50 N/m against k = 1e5 N/m: 1e-2
+    relative in the Frobenius norm allows for them and for gravity's and the
+    point load's own, smaller, derivatives). Positive semi-definite by
+    construction; the contact's gradient is not zero (a W without the pair is)."""
+    from sorojax.dynamics._contact import contact_tangent
+    from sorojax.dynamics._generalized import kinematics_from_data
+    from sorojax.model._precompute import precompute
+
+    lk = crossing_rods(0.5)
+    q = sj.solve_statics(lk).q
+    kin = kinematics_from_data(precompute(lk), q, jnp.zeros_like(q), need_jdot=False)
+    Kc, Dc = contact_tangent(lk, 0.0, kin.g, kin.J, kin.eta)
+    K_num = -jax.jacfwd(lambda q_: sj.generalized_external_force(lk, q_))(q)
+    scale = float(jnp.linalg.norm(K_num))
+    assert scale > 1.0, "the pair's contact stiffness should show in -dQ/dq"
+    assert float(jnp.linalg.norm(Kc - K_num)) < 1e-2 * scale
+    np.testing.assert_allclose(Kc, Kc.T, atol=1e-9 * scale)
+    assert float(jnp.min(jnp.linalg.eigvalsh(Kc))) > -1e-9 * scale
+
+
 # --------------------------------------------------------------- kernels and input
 def test_segment_closest_points_match_brute_force():
     rng = np.random.default_rng(0)

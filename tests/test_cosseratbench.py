@@ -19,6 +19,7 @@ from cosseratbench.experiments.capstan import capstan  # noqa: E402
 from cosseratbench.experiments.crossing import crossing  # noqa: E402
 from cosseratbench.experiments.pendulum import pendulum  # noqa: E402
 
+import sorojax.contrib.cosseratbench as adapter  # noqa: E402
 from sorojax.contrib.cosseratbench import SorojaxSolver  # noqa: E402
 
 
@@ -130,3 +131,16 @@ def test_contact_scenes_model_choices():
     assert m["method"] == "damped" and m["start_joint"] == "A", m
     assert m["divisions"] == 10 and m["end_closure"] is None, m
     assert s["contact"]["cylinder_friction"] == 0.3, s["contact"]
+    # divisions end where the draped rope's curvature jumps: at the wrap's ends,
+    # 0.15 m of rest length from the light end and a half-turn of the wrap radius
+    # further (its tension stretches it by under 1e-3), to within a point spacing
+    rod = capstan.scenario.rods[0]
+    L = rod.length
+    wrap = np.pi * (0.05 + rod.radius)
+    np.testing.assert_allclose(
+        np.asarray(adapter._kinks(rod)) * L, [0.15, 0.15 + wrap], atol=3e-3
+    )
+    cuts = adapter._divided(10, adapter._kinks(rod))
+    assert len(cuts) == 9 and all(k in cuts for k in adapter._kinks(rod)), cuts
+    # a straight rod has none
+    assert adapter._kinks(crossing.scenario.rods[0]) == ()

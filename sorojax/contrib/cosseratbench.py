@@ -54,14 +54,17 @@ all rods in one linkage, each rod a link on the ground placed at its start frame
 with one :class:`sorojax.Contact`: cosseratbench's cylinders become capsules of its
 length, planes stay planes, rods closer than :data:`PAIR_REACH` are a rod pair; a
 driven start is a prismatic joint whose coordinate is prescribed. Contact laws are
-sized from the scene's loads (:func:`_laws`: stiffness for :data:`PENETRATION`,
-critical damping, the larger friction coefficient, static and kinetic alike).
+sized from the scene's loads (:func:`_laws`: stiffness for :data:`PENETRATION`
+between rods and :data:`OBSTACLE_PENETRATION` against obstacles, critical damping,
+the larger friction coefficient, static and kinetic alike).
 Frictionless quasi-static scenes (crossing) first fall, damped, into contact
 (:meth:`SorojaxSolver._touch`), then solve the statics with a contact-stiffness
 continuation (:data:`STIFFNESS_STAGES`); a rod pressed by another is divided
 where it touches. Frictional ones (capstan) run the damped dynamics with ROS34PW2
-(its W carries the obstacle contact and sticking friction) on
-:data:`DIVISION_RULE` divisions of order :data:`DIVISION_ORDER`. A rod in a
+(its W carries the obstacle contact and sticking friction, tolerance
+:data:`CONTACT_RTOL`) on :data:`DIVISION_RULE` divisions of order
+:data:`DIVISION_ORDER`, their ends moved onto the initial shape's curvature jumps
+(:func:`_kinks`). A rod in a
 contact scene keeps a planar model only where every contact force stays in its
 plane.
 
@@ -143,17 +146,27 @@ PAIR_REACH = 0.2
 length are a contact pair."""
 
 PENETRATION = 2e-3
-"""Contact stiffness: the scene's load scale sinks this fraction of the radius."""
+"""Rod-pair contact stiffness: the scene's load scale sinks this fraction of the
+radius."""
+
+OBSTACLE_PENETRATION = 5e-2
+"""Obstacle contact stiffness: the scene's load scale sinks this fraction of the
+radius. Stiffer costs steps without changing the capstan's slide: at 0.1 of the
+radius ROS34PW2 takes 1145 steps for its first 0.1 s, at 5e-2 1249 and at 2e-3
+(the rod pairs' value) 1533 for 5 ms alone."""
 
 SMOOTHING = 0.5
 """The law's smoothing depth, a fraction of the target penetration."""
 
 STICK_VELOCITY = 1e-4
 """Regularised friction's stick velocity [m/s]: a rope held at r of its friction
-limit creeps at about ``v r / sqrt(1 - r^2)``."""
+limit creeps at about ``v r / sqrt(1 - r^2)``. The capstan rope at 0.8 of its
+holding overhang creeps 0.32 mm in its 2 s at 1e-4, 2.9 mm at 1e-3 (which takes
+0.6 of the time)."""
 
-SPACING_RADII = 2.0
-"""Largest distance between contact samples against obstacles, in rod radii."""
+SPACING_RADII = 5.0
+"""Largest distance between contact samples against obstacles, in rod radii (a rope
+wrapped on the capstan's cylinder, 50 radii, bends with it between samples)."""
 
 PAIR_SPACING_RADII = 8.0
 """Largest distance between contact samples of rod pairs, in rod radii."""
@@ -167,11 +180,20 @@ DIVISION_RULE = (10.0, 4, 16)
 DIVISION_ORDER = 3
 """Bending order per division in contact dynamics."""
 
+MAX_KINKS = 4
+"""Most curvature jumps of an initial shape that divisions are moved onto."""
+
 CONTACT_SOLVER = "ros34pw2"
 """Integrator of contact dynamics: its W carries the obstacles' contact stiffness,
 damping and sticking friction, which would bound an explicit step."""
 
 CONTACT_SOLVER_ORDER = 3
+
+CONTACT_RTOL = 1e-2
+"""Relative tolerance of contact dynamics at ``time_step_scale = 1`` (atol:
+:data:`ATOL_FACTOR` of it). The quasi-static scenes' metrics are slow motions: the
+capstan's light end moves the same to 2e-7 m over the first 0.1 s at 1e-2 and 1e-3,
+in 353 and 1249 steps."""
 
 CONTACT_STATICS = False
 """Whether frictionless quasi-static contact scenes use the contact statics (a
@@ -773,6 +795,47 @@ def _planar_with(scenario: Scenario, n: np.ndarray, others: list) -> bool:
     return True
 
 
+def _kinks(rod: Rod) -> tuple[float, ...]:
+    """Where the initial centre line's curvature jumps, as fractions of the length.
+
+    A rope draped over a cylinder is straight, then bent at the cylinder's radius,
+    then straight again: a polynomial strain across such a jump fits it badly (the
+    fitted rope starts cut into the cylinder and jolts off it). The jumps are where
+    the turning rate per rest length crosses half its largest value within two
+    vertices (a smooth sag's gentle rise is no jump); a rod turned by
+    less than a tenth of a radian in all, or with more than :data:`MAX_KINKS` such
+    crossings (a wavy line, not a wrap), has none.
+    """
+    pts = np.asarray(rod.centerline, dtype=float)
+    arc = _rest_arc(rod)
+    t = np.diff(pts, axis=0)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    turn = np.arccos(np.clip(np.sum(t[1:] * t[:-1], axis=1), -1.0, 1.0))
+    if turn.sum() < 0.1:
+        return ()
+    rate = turn / (0.5 * (arc[2:] - arc[:-2]))  # at the inner vertices
+    high = rate > 0.5 * rate.max()
+    flips = np.flatnonzero(high[1:] != high[:-1])
+    # a jump, not a smooth rise: within two vertices, by a quarter of the most
+    step = np.abs(np.diff(rate))
+    near = [step[max(i - 2, 0) : i + 3].sum() for i in flips]
+    flips = flips[np.asarray(near) > 0.25 * rate.max()] if len(flips) else flips
+    if len(flips) > MAX_KINKS:
+        return ()
+    where = 0.5 * (arc[1:-1][flips] + arc[1:-1][flips + 1]) / arc[-1]
+    return tuple(float(f) for f in where if 0.0 < f < 1.0)
+
+
+def _divided(n_div: int, kinks: tuple[float, ...]) -> tuple[float, ...]:
+    """``n_div`` even divisions, with division ends moved onto ``kinks``.
+
+    Even ends closer than half a division to a kink give way to it.
+    """
+    even = np.arange(1, n_div) / n_div
+    keep = [e for e in even if all(abs(e - k) >= 0.5 / n_div for k in kinks)]
+    return tuple(sorted({*(round(float(e), 12) for e in keep), *kinks}))
+
+
 def _scene_plans(scenario: Scenario, n_elements: int) -> list[_Plan]:
     """The rods' plans in a contact scene (see the module text)."""
     rods = scenario.rods
@@ -798,10 +861,10 @@ def _scene_plans(scenario: Scenario, n_elements: int) -> list[_Plan]:
     else:
         # several divisions of a low order: a rope wrapped on an obstacle bends
         # sharply where it leaves it, and that place moves along the rope as it
-        # slides
+        # slides; a division ends where the initial shape's curvature jumps
         per, lo, hi = DIVISION_RULE
         n_div = int(min(max(round(n_elements / per), lo), hi))
-        cuts = [tuple(np.arange(1, n_div) / n_div) for _ in rods]
+        cuts = [_divided(n_div, _kinks(rod)) for rod in rods]
         order = DIVISION_ORDER
     if method == "statics" and not CONTACT_STATICS:
         # the frictionless scene's model, settled by the damped dynamics
@@ -853,14 +916,16 @@ class _Laws:
 
 
 def _laws(scenario: Scenario, method: str, spacing: float) -> _Laws:
-    """Contact laws sized from the scene's loads (see :data:`PENETRATION`).
+    """Contact laws sized from the scene's loads.
 
     Obstacles (per unit length): the stiffness that holds the rope's weight per
     length, times ``1 + L / R`` on a cylinder of radius R (the tension of a rope
-    hanging over it presses ``T / R``), at :data:`PENETRATION` of the rope's radius.
-    Rod pairs and self-contact (per point): the lighter rod's weight at that
-    penetration. Damping is critical for a sample's mass; friction is the larger of
-    the two coefficients, static and kinetic alike (the benchmark's Coulomb law).
+    hanging over it presses ``T / R``), at :data:`OBSTACLE_PENETRATION` of the
+    rope's radius.
+    Rod pairs and self-contact (per point): the lighter rod's weight at
+    :data:`PENETRATION` of the radius. Damping is critical for a sample's mass;
+    friction is the larger of the two coefficients, static and kinetic alike (the
+    benchmark's Coulomb law).
     """
     rods = scenario.rods
     g = float(np.linalg.norm(scenario.gravity)) or 1.0
@@ -874,7 +939,10 @@ def _laws(scenario: Scenario, method: str, spacing: float) -> _Laws:
     )
     rod_mu = max((rod.friction for rod in rods), default=0.0)
     v_s = STICK_VELOCITY
-    info: dict = {"target_penetration": f"{pen:g} of the rod radius"}
+    info: dict = {
+        "target_penetration": f"{pen:g} of the rod radius",
+        "obstacle_target_penetration": f"{OBSTACLE_PENETRATION:g} of the rod radius",
+    }
     pair = None
     if _pairs(scenario) or scenario.self_contact:
         k = (weight + loads) / (pen * r_min)
@@ -896,12 +964,12 @@ def _laws(scenario: Scenario, method: str, spacing: float) -> _Laws:
             f = w_len * (1.0 + L / ob.radius)
         else:
             f = w_len * PILE_LAYERS
-        k = f / (pen * r_min)
+        k = f / (OBSTACLE_PENETRATION * r_min)
         mu = max(ob.friction, rod_mu)
         obstacle_laws.append(
             sj.ContactLaw(
                 stiffness=k,
-                smoothing=SMOOTHING * pen * r_min,
+                smoothing=SMOOTHING * OBSTACLE_PENETRATION * r_min,
                 damping=2.0 * math.sqrt(k * mass_len),
                 static_friction=mu,
                 stick_velocity=v_s,
@@ -912,6 +980,7 @@ def _laws(scenario: Scenario, method: str, spacing: float) -> _Laws:
     if method != "statics" and _frictional(scenario):
         info["stick_velocity_m_per_s"] = v_s
     info["smoothing_m"] = SMOOTHING * pen * r_min
+    info["obstacle_smoothing_m"] = SMOOTHING * OBSTACLE_PENETRATION * r_min
     info["sample_spacing_m"] = spacing
     return _Laws(pair, tuple(obstacle_laws), info)
 
@@ -1185,7 +1254,7 @@ class SorojaxSolver:
     # ------------------------------------------------------------------ settings
     def _tolerances(self, contact: bool = False) -> tuple[str, float, float]:
         if contact:
-            rtol = SOLVER_RTOL * self.time_step_scale**CONTACT_SOLVER_ORDER
+            rtol = CONTACT_RTOL * self.time_step_scale**CONTACT_SOLVER_ORDER
             return CONTACT_SOLVER, rtol, ATOL_FACTOR * rtol
         rtol = SOLVER_RTOL * self.time_step_scale**SOLVER_ORDER
         return DYNAMIC_SOLVER, rtol, ATOL_FACTOR * rtol
@@ -1234,9 +1303,7 @@ class SorojaxSolver:
                 entry["solver"] = "solve_statics (Newton, rtol=atol=1e-10)"
                 entry["if_unstable"] = "damped dynamics (mass-proportional)"
             else:
-                solver, rtol, atol = self._tolerances(
-                    contact and bool(scenario.obstacles)
-                )
+                solver, rtol, atol = self._tolerances(contact)
                 entry.update(solver=solver, rtol=rtol, atol=atol, adaptive=True)
             if plan.method == "damped":
                 entry["damping"] = "mass-proportional"
@@ -1407,10 +1474,8 @@ class SorojaxSolver:
         self, models, members, times, contact: bool = False, state: bool = False
     ):
         mdl = models[members[0]]
-        # ROS34PW2's W carries obstacle contacts only: rods touching each other
-        # alone run the explicit default
-        obstacles = contact and bool(mdl.linkage.contact.obstacles)
-        solver, rtol, atol = self._tolerances(obstacles)
+        # contact scenes run ROS34PW2, whose W carries the contacts' stiffness
+        solver, rtol, atol = self._tolerances(contact)
         n = mdl.linkage.n_dof
         B = len(members)
         y = jnp.tile(jnp.concatenate([mdl.q0, jnp.zeros(n)])[None], (B, 1))

@@ -379,40 +379,69 @@ def _segment_velocity(x, w, v, i0, i1, c, lam):
     return (1 - lam)[:, None] * v0 + lam[:, None] * v1
 
 
+class _PairGeometry(NamedTuple):
+    """One rod pair's segment pairs: closest points, normals, gaps, velocities."""
+
+    a0: np.ndarray  # sample indices of the segments' ends on rod A
+    a1: np.ndarray
+    b0: np.ndarray  # ... and on rod B
+    b1: np.ndarray
+    s: Array  # closest points' parameters along A's and B's segments
+    u: Array
+    share: Array  # the vertex shares' weight of each segment pair
+    n: Array  # unit normal, from B to A
+    d: Array  # penetration (positive in contact)
+    cA: Array  # contact points on A's and B's surfaces
+    cB: Array
+    v_rel: Array  # A's surface velocity relative to B's at the contact
+    frames: tuple  # (Ra, pa, Rb, pb): the samples' frames
+
+
+def _pair_geometry(g, eta, sa, ga, sb, gb, ia, ib) -> _PairGeometry:
+    """The segment pairs ``(ia, ib)`` of two rods (or one, for self-contact)."""
+    Ra, pa, xa, wa, va = _world_points(g, eta, sa)
+    Rb, pb, xb, wb, vb = _world_points(g, eta, sb)
+    a0, a1 = ga.start[ia], ga.end[ia]
+    b0, b1 = gb.start[ib], gb.end[ib]
+    s, u, s_line, u_line, parallel = jax.vmap(_segment_closest)(
+        xa[a0], xa[a1], xb[b0], xb[b1]
+    )
+    share = _vertex_share(s_line, ia == 0, ia == len(ga.start) - 1) * _vertex_share(
+        u_line, ib == 0, ib == len(gb.start) - 1
+    )
+    # parallel segments take their start vertex: every vertex once
+    share = jnp.where(
+        parallel, _vertex_share(u_line, ib == 0, ib == len(gb.start) - 1), share
+    )
+    PA = xa[a0] + s[:, None] * (xa[a1] - xa[a0])
+    PB = xb[b0] + u[:, None] * (xb[b1] - xb[b0])
+    rA = (1 - s) * sa.radius[a0] + s * sa.radius[a1]
+    rB = (1 - u) * sb.radius[b0] + u * sb.radius[b1]
+    dvec = PA - PB
+    dist = _safe_norm(dvec)
+    n = dvec / jnp.maximum(dist, 1e-12)[:, None]
+    d = rA + rB - dist
+    cA = PA - rA[:, None] * n
+    cB = PB + rB[:, None] * n
+
+    v_rel = _segment_velocity(xa, wa, va, a0, a1, cA, s) - _segment_velocity(
+        xb, wb, vb, b0, b1, cB, u
+    )
+    return _PairGeometry(
+        a0, a1, b0, b1, s, u, share, n, d, cA, cB, v_rel, (Ra, pa, Rb, pb)
+    )
+
+
 def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
     """Rod-rod contacts: (wrench rows, report rows)."""
     law = contact.law
     W = jnp.zeros((g.shape[0], 6), g.dtype)
     rows = []
     for sa, ga, sb, gb, ia, ib in pairs:
-        Ra, pa, xa, wa, va = _world_points(g, eta, sa)
-        Rb, pb, xb, wb, vb = _world_points(g, eta, sb)
-        a0, a1 = ga.start[ia], ga.end[ia]
-        b0, b1 = gb.start[ib], gb.end[ib]
-        s, u, s_line, u_line, parallel = jax.vmap(_segment_closest)(
-            xa[a0], xa[a1], xb[b0], xb[b1]
-        )
-        share = _vertex_share(s_line, ia == 0, ia == len(ga.start) - 1) * _vertex_share(
-            u_line, ib == 0, ib == len(gb.start) - 1
-        )
-        # parallel segments take their start vertex: every vertex once
-        share = jnp.where(
-            parallel, _vertex_share(u_line, ib == 0, ib == len(gb.start) - 1), share
-        )
-        PA = xa[a0] + s[:, None] * (xa[a1] - xa[a0])
-        PB = xb[b0] + u[:, None] * (xb[b1] - xb[b0])
-        rA = (1 - s) * sa.radius[a0] + s * sa.radius[a1]
-        rB = (1 - u) * sb.radius[b0] + u * sb.radius[b1]
-        dvec = PA - PB
-        dist = _safe_norm(dvec)
-        n = dvec / jnp.maximum(dist, 1e-12)[:, None]
-        d = rA + rB - dist
-        cA = PA - rA[:, None] * n
-        cB = PB + rB[:, None] * n
-
-        v_rel = _segment_velocity(xa, wa, va, a0, a1, cA, s) - _segment_velocity(
-            xb, wb, vb, b0, b1, cB, u
-        )
+        k = _pair_geometry(g, eta, sa, ga, sb, gb, ia, ib)
+        a0, a1, b0, b1, s, u = k.a0, k.a1, k.b0, k.b1, k.s, k.u
+        share, n, d, cA, cB, v_rel = k.share, k.n, k.d, k.cA, k.cB, k.v_rel
+        Ra, pa, Rb, pb = k.frames
         f, fn, vt = _law_forces(
             law,
             d,
@@ -708,7 +737,7 @@ def _point_jacobian(g, J, point, x_c):
     )
 
 
-def _tangent_terms(law, weight, d, n, v_rel, Jc):
+def _tangent_terms(law, weight, d, n, v_rel, Jc, friction: bool = True):
     """``(K, D)`` contributions of contacts with relative-velocity Jacobians ``Jc``."""
     kn = weight * jax.vmap(jax.grad(law.normal_force))(d)
     cn = weight * law.damping * law.ramp(d)
@@ -720,6 +749,8 @@ def _tangent_terms(law, weight, d, n, v_rel, Jc):
         * law.normal_force(d)
         / jnp.sqrt(jnp.sum(vt * vt, axis=-1) + law.stick_velocity**2)
     )
+    if not friction:
+        ct = jnp.zeros_like(ct)
     Jn = jnp.einsum("ni,nik->nk", n, Jc)  # normal rows
     K = jnp.einsum("n,ni,nj->ij", kn, Jn, Jn)
     D = jnp.einsum("n,ni,nj->ij", cn - ct, Jn, Jn) + jnp.einsum(
@@ -736,9 +767,11 @@ def contact_tangent(linkage: Linkage, t, g, J, eta) -> tuple[Array, Array]:
     n n^T) J_c`` and ``D_c = sum J_c^T (w c s(d) n n^T + w c_t (I - n n^T)) J_c``
     with ``J_c`` the Jacobian of each contact's relative velocity (world) and
     ``c_t = mu f_n / sqrt(|v_t|^2 + v_s^2)`` the friction's viscous slope: obstacle
-    contacts, and bodies against rods (tubes, a rigid shape in ``rod_pairs``).
-    The geometric (curvature) terms and rod-rod pairs are left out: W only needs
-    the contacts' fast scales, its order conditions hold for any W.
+    contacts, rod pairs and self-contact (each segment pair's contact point moves
+    with its segment's two samples, weighted as its force is split), and bodies
+    against rods (tubes, a rigid shape in ``rod_pairs``). The geometric
+    (curvature) terms are left out: W only needs the contacts' fast scales, its
+    order conditions hold for any W.
     """
     contact = linkage.contact
     assert contact is not None
@@ -756,6 +789,20 @@ def contact_tangent(linkage: Linkage, t, g, J, eta) -> tuple[Array, Array]:
                 contact.obstacle_law(k), samples.weight, d, n, v_rel, Jc
             )
             Kc, Dc = Kc + K, Dc + D
+    for sa, ga, sb, gb, ia, ib in _pair_list(linkage):
+        k = _pair_geometry(g, eta, sa, ga, sb, gb, ia, ib)
+        Jc = 0.0
+        for pts, idx, c, lam in (
+            (sa.point, k.a0, k.cA, 1 - k.s),
+            (sa.point, k.a1, k.cA, k.s),
+            (sb.point, k.b0, k.cB, -(1 - k.u)),
+            (sb.point, k.b1, k.cB, -k.u),
+        ):
+            Jc = Jc + lam[:, None, None] * _point_jacobian(g, J, pts[idx], c)
+        K, D = _tangent_terms(
+            law, k.share, k.d, k.n, k.v_rel, Jc, contact.friction_in_rod_pairs
+        )
+        Kc, Dc = Kc + K, Dc + D
     for rod, body, inside in sphere_rod_pairs(linkage):
         k = _sphere_rod(linkage, g, eta, rod, body, inside)
         Jc = _point_jacobian(g, J, k.sb.point[k.ib], k.c_body)

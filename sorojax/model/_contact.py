@@ -629,9 +629,10 @@ class Contact(eqx.Module):
             0-based into ``obstacles``: a slippery peg beside a rough floor); the
             others, the rod pairs and the tubes use ``law``.
         obstacle_law_index: their obstacle indices (static).
-        tangent_in_w: whether ROS34PW2's W carries the obstacle contacts' stiffness
-            and damping (default True: stiff contact and sticking friction then
-            do not bound its step; ``benchmarks/contact.py`` measures both).
+        tangent_in_w: whether ROS34PW2's W carries the contacts' stiffness and
+            damping (obstacles, rod pairs, self-contact and tubes; default True:
+            stiff contact and sticking friction then do not bound its step;
+            ``benchmarks/contact.py`` measures both).
     """
 
     obstacles: tuple[AbstractObstacle, ...]
