@@ -6,8 +6,9 @@ finds it through the entry point ``cosseratbench.solvers: sorojax`` (pyproject.t
 this module is loaded only then, or by its test, so it imports cosseratbench at the
 top. What is not modelled (dense self-contact, a displaced driven end, a turning
 driven start, a Poisson ratio above 0.5) raises ``NotImplementedError`` (reported
-"unsupported"). Contact scenes (obstacles, rods that touch) are declared only by
-``SorojaxSolver(contact=True)``: their runs take minutes to hours on a 2-core CPU.
+"unsupported"). Obstacle contact is declared; rods touching rods only by
+``SorojaxSolver(contact=True)``: the crossing's run takes a quarter of an hour or
+more on a 2-core CPU.
 
 Model per rod (from the scenario's physics; :meth:`SorojaxSolver.settings` reports it):
 
@@ -1223,12 +1224,12 @@ class SorojaxSolver:
 
     Attributes:
         name: ``"sorojax"`` (the benchmark's name for it).
-        capabilities: stretch and shear; with ``contact=True`` also rod contact
-            and friction, cylinder and plane contact. The contact path (all rods
-            in one linkage, rod pairs, obstacles) is opt-in: on the crossing and
-            capstan scenes it did not finish within half an hour on a 2-core CPU,
-            so the default declaration leaves those scenes "unsupported" rather
-            than hanging; dense self-contact (pile) raises
+        capabilities: stretch, shear, cylinder and plane contact and friction
+            (the capstan runs in about two minutes on a 2-core CPU); with
+            ``contact=True`` also rod contact. Rod contact is opt-in: the
+            crossing at its 51 elements did not finish within 25 minutes on a
+            2-core CPU (at 31, 5-6 minutes), so the default declaration leaves it
+            "unsupported" rather than hanging; dense self-contact (pile) raises
             ``NotImplementedError`` (see :data:`_SELF_CONTACT_COST`), and the
             twist's self-contact is not checked.
         backend_version: the installed sorojax version.
@@ -1238,7 +1239,15 @@ class SorojaxSolver:
     """
 
     name = "sorojax"
-    capabilities = frozenset({Capability.STRETCH, Capability.SHEAR})
+    capabilities = frozenset(
+        {
+            Capability.STRETCH,
+            Capability.SHEAR,
+            Capability.CYLINDER_CONTACT,
+            Capability.PLANE_CONTACT,
+            Capability.ROD_FRICTION,
+        }
+    )
     backend_version = sj.__version__
 
     def __init__(self, time_step_scale: float = 1.0, contact: bool = False):
@@ -1303,7 +1312,9 @@ class SorojaxSolver:
                 entry["solver"] = "solve_statics (Newton, rtol=atol=1e-10)"
                 entry["if_unstable"] = "damped dynamics (mass-proportional)"
             else:
-                solver, rtol, atol = self._tolerances(contact)
+                solver, rtol, atol = self._tolerances(
+                    contact and bool(scenario.obstacles)
+                )
                 entry.update(solver=solver, rtol=rtol, atol=atol, adaptive=True)
             if plan.method == "damped":
                 entry["damping"] = "mass-proportional"
@@ -1474,8 +1485,12 @@ class SorojaxSolver:
         self, models, members, times, contact: bool = False, state: bool = False
     ):
         mdl = models[members[0]]
-        # contact scenes run ROS34PW2, whose W carries the contacts' stiffness
-        solver, rtol, atol = self._tolerances(contact)
+        # obstacle scenes run ROS34PW2, whose W carries the contacts' stiffness
+        # and sticking friction; rods touching each other alone run the explicit
+        # default (on the crossing at 31 elements, ROS34PW2 at rtol 1e-2 with the
+        # pair in W took 2.3 times Tsit5's time, to the same shape)
+        obstacles = contact and bool(mdl.linkage.contact.obstacles)
+        solver, rtol, atol = self._tolerances(obstacles)
         n = mdl.linkage.n_dof
         B = len(members)
         y = jnp.tile(jnp.concatenate([mdl.q0, jnp.zeros(n)])[None], (B, 1))
