@@ -31,8 +31,8 @@ until the change is < 1e-4):
 
 The order study shares compiled work (``sorojax.size_class``, see
 :func:`padded_l_beam`): orders (2, 1) and (3, 2) are one class of 48 coordinates,
-one statics program instead of two (first run 10.9-11.2 -> 8.2-9.3 s on a 2-core
-CPU, 2026-11-25). A padded model is the model at the class's points (10 per arm
+one statics program instead of two (a quarter off the first run on a 2-core
+CPU). A padded model is the model at the class's points (10 per arm
 against 8 for order 2; equal to 1e-15 to the unpadded model with 10 points), which
 moves the 30-DoF corner deflection by 1e-5 relative. The vertical L's maximum lies
 between points, so its printed value follows the points (0.575 cm with 8, 0.579

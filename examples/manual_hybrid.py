@@ -19,7 +19,7 @@ along the motion and the torque. Writes a PNG (equilibrium, snapshots, torque);
 The first run compiles the statics and the dynamics of this closed-loop model; the
 dynamics' programs are traced first and compiled in a worker thread while the
 statics compile and run (``sorojax.prepare``): 12.5-14.5 s in all on a 2-core CPU
-against 14.8-18.0 s without (2026-11-26, six interleaved pairs). The compiled programs
+against 14.8-18.0 s without (six interleaved pairs). The compiled programs
 are kept in JAX's persistent cache (``sorojax.enable_compilation_cache``), so a
 second run takes about 10 s (the traces are not cached).
 

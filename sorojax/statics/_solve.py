@@ -11,15 +11,14 @@ All increments and Newton iterations run in one ``lax.while_loop`` whose body ev
 the residual, its Jacobian and the unscaled rows in one forward-mode pass (loose
 tolerances for the intermediate increments, the requested ones for the last; only as
 many increments as needed, also under ``vmap``) on stop-gradient data: the compiled
-program holds one trace of the residual (the manual's hybrid: first call 343 s with
-optimistix's Newton and separate start/final evaluations, 20 s now, on the same
-2-core CPU). Gradients come from the implicit function theorem at the converged root,
+program holds one trace of the residual, which keeps its compile short (an
+optimistix Newton solve with separate start and final evaluations traces it several
+times). Gradients come from the implicit function theorem at the converged root,
 by a custom JVP outside that loop (what ``optx.ImplicitAdjoint`` does) that solves
-with the loop's last Jacobian instead of forming it again (differentiated programs
-24-27 % smaller: the manual hybrid's gradient compiled in 5.7 s instead of 8.3 s);
-the returned residual rows carry their derivative in the same JVP, from the same
-forward-mode pass of the residual. A user's optimistix solver (``solver=``) runs each
-increment with optimistix's own loop.
+with the loop's last Jacobian instead of forming it again (a quarter smaller
+differentiated programs); the returned residual rows carry their derivative in the
+same JVP, from the same forward-mode pass of the residual. A user's optimistix
+solver (``solver=``) runs each increment with optimistix's own loop.
 """
 
 import math
