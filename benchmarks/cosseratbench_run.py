@@ -193,7 +193,12 @@ def _model(summary) -> str:
             for name, v in c.items()
             if "stiff" in name
         )
-        text += f"; contact {k} (target {c.get('target_penetration')})"
+        rods = any(name.startswith("rod_rod") for name in c)
+        target = c.get(
+            "target_penetration" if rods else "obstacle_target_penetration",
+            c.get("target_penetration"),
+        )
+        text += f"; contact {k} (target penetration {target})"
     return text
 
 
