@@ -509,6 +509,12 @@ CASES = [
         ValueError,
         [r"max_steps", r"0"],
     ),
+    (
+        "simulate-u-nan",
+        lambda: sj.simulate(_cable_rod(), 0.1, u=[NAN]),
+        ValueError,
+        [r"\bu\b", r"nan"],
+    ),
     # files
     ("save-suffix", lambda: _save("run.txt"), ValueError, [r"\.txt", r"\.npz"]),
     ("save-exists", _save_twice, FileExistsError, [r"run\.npz", r"overwrite"]),
