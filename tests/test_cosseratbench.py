@@ -30,10 +30,12 @@ def test_solver_contract():
     solver = SorojaxSolver()
     assert isinstance(solver, cb.Solver)
     assert solver.name == "sorojax"
-    # rod contact is opt-in (the crossing's run is too slow to declare by default)
-    assert cb.Capability.ROD_CONTACT not in solver.capabilities
-    assert cb.Capability.CYLINDER_CONTACT in solver.capabilities
-    assert SorojaxSolver(contact=True).capabilities == frozenset(cb.Capability)
+    # every capability by default; contact=False declares none of contact's
+    assert solver.capabilities == frozenset(cb.Capability)
+    assert SorojaxSolver(contact=False).capabilities == {
+        cb.Capability.STRETCH,
+        cb.Capability.SHEAR,
+    }
     assert "sorojax" in registry.names(registry.SOLVERS), "entry point not installed"
     assert SorojaxSolver(time_step_scale=2.0).time_step_scale == 2.0
 
@@ -122,6 +124,10 @@ def test_contact_scenes_model_choices():
     m = s["model"]
     assert m["rods"] == [0, 1] and m["divisions"] == 2, m
     assert m["method"] == "damped" and m["start_joint"] == "R", m
+    # order 10 at 51 elements: ROS34PW2, the rod pair's stiffness in its W
+    assert m["orders"]["bend_y"] == 10 and m["solver"] == "ros34pw2", m
+    m31 = solver.settings(crossing.scenario, n_elements=31, n_frames=3)["model"]
+    assert m31["orders"]["bend_y"] == 6 and m31["solver"] == "tsit5", m31
     rod = crossing.scenario.rods[0]
     weight = rod.material.density * rod.area * rod.length * 9.81
     k = s["contact"]["rod_rod_stiffness_N_per_m"]

@@ -6,9 +6,9 @@ finds it through the entry point ``cosseratbench.solvers: sorojax`` (pyproject.t
 this module is loaded only then, or by its test, so it imports cosseratbench at the
 top. What is not modelled (dense self-contact, a displaced driven end, a turning
 driven start, a Poisson ratio above 0.5) raises ``NotImplementedError`` (reported
-"unsupported"). Obstacle contact is declared; rods touching rods only by
-``SorojaxSolver(contact=True)``: the crossing's run takes a quarter of an hour or
-more on a 2-core CPU.
+"unsupported"). Every capability is declared; ``SorojaxSolver(contact=False)``
+declares none of contact's (the crossing's run takes about 12 minutes on a 2-core
+CPU, the capstan's one).
 
 Model per rod (from the scenario's physics; :meth:`SorojaxSolver.settings` reports it):
 
@@ -189,6 +189,12 @@ CONTACT_SOLVER = "ros34pw2"
 damping and sticking friction, which would bound an explicit step."""
 
 CONTACT_SOLVER_ORDER = 3
+
+PAIR_IMPLICIT_ORDER = 8
+"""Rod-pair scenes whose bending order reaches this run ROS34PW2 (with the pairs'
+stiffness in W), lower ones Tsit5: on the crossing (2-core CPU), at 31 elements
+(order 6) Tsit5 took 333 s and ROS34PW2 778 s; at 51 (order 10) ROS34PW2 712 s,
+Tsit5 more than 25 minutes."""
 
 CONTACT_RTOL = 1e-2
 """Relative tolerance of contact dynamics at ``time_step_scale = 1`` (atol:
@@ -1157,6 +1163,20 @@ def _mass_damping_points(rate: float, per_point: tuple[tuple[float, ...], ...]):
     return hook
 
 
+def _high_order(plan: _Plan) -> bool:
+    """Whether a rod-pair scene's bending order reaches :data:`PAIR_IMPLICIT_ORDER`."""
+    return max(plan.orders) >= PAIR_IMPLICIT_ORDER
+
+
+def _implicit(plan: _Plan, mdl: _Model) -> bool:
+    """Whether a contact scene runs ROS34PW2.
+
+    Obstacles (their stiffness and sticking friction would bound an explicit step)
+    or a high-order rod pair do.
+    """
+    return bool(mdl.linkage.contact.obstacles) or _high_order(plan)
+
+
 def _joint(kind: str, normal_local) -> sj.Joint:
     if kind in ("R", "A"):
         return sj.Joint(kind, axis=normal_local)
@@ -1224,14 +1244,11 @@ class SorojaxSolver:
 
     Attributes:
         name: ``"sorojax"`` (the benchmark's name for it).
-        capabilities: stretch, shear, cylinder and plane contact and friction
-            (the capstan runs in about two minutes on a 2-core CPU); with
-            ``contact=True`` also rod contact. Rod contact is opt-in: the
-            crossing at its 51 elements did not finish within 25 minutes on a
-            2-core CPU (at 31, 5-6 minutes), so the default declaration leaves it
-            "unsupported" rather than hanging; dense self-contact (pile) raises
-            ``NotImplementedError`` (see :data:`_SELF_CONTACT_COST`), and the
-            twist's self-contact is not checked.
+        capabilities: all of the benchmark's: stretch, shear, rod contact and
+            friction, cylinder and plane contact (``contact=False``: stretch and
+            shear only). Dense self-contact (pile) raises ``NotImplementedError``
+            (see :data:`_SELF_CONTACT_COST`), and the twist's self-contact is not
+            checked.
         backend_version: the installed sorojax version.
         time_step_scale: multiplies the integrator's steps: the relative tolerance of
             the adaptive step control is scaled by ``time_step_scale**p``, ``p`` the
@@ -1239,26 +1256,18 @@ class SorojaxSolver:
     """
 
     name = "sorojax"
-    capabilities = frozenset(
-        {
-            Capability.STRETCH,
-            Capability.SHEAR,
-            Capability.CYLINDER_CONTACT,
-            Capability.PLANE_CONTACT,
-            Capability.ROD_FRICTION,
-        }
-    )
+    capabilities = frozenset(Capability)
     backend_version = sj.__version__
 
-    def __init__(self, time_step_scale: float = 1.0, contact: bool = False):
+    def __init__(self, time_step_scale: float = 1.0, contact: bool = True):
         if not float(time_step_scale) > 0:
             raise ValueError(
                 f"time_step_scale = {time_step_scale!r}: give a positive number "
                 "(1 = the adapter's own choice)."
             )
         self.time_step_scale = float(time_step_scale)
-        if contact:
-            self.capabilities = frozenset(Capability)
+        if not contact:
+            self.capabilities = frozenset({Capability.STRETCH, Capability.SHEAR})
 
     # ------------------------------------------------------------------ settings
     def _tolerances(self, contact: bool = False) -> tuple[str, float, float]:
@@ -1313,7 +1322,7 @@ class SorojaxSolver:
                 entry["if_unstable"] = "damped dynamics (mass-proportional)"
             else:
                 solver, rtol, atol = self._tolerances(
-                    contact and bool(scenario.obstacles)
+                    contact and (bool(scenario.obstacles) or _high_order(plan))
                 )
                 entry.update(solver=solver, rtol=rtol, atol=atol, adaptive=True)
             if plan.method == "damped":
@@ -1485,12 +1494,7 @@ class SorojaxSolver:
         self, models, members, times, contact: bool = False, state: bool = False
     ):
         mdl = models[members[0]]
-        # obstacle scenes run ROS34PW2, whose W carries the contacts' stiffness
-        # and sticking friction; rods touching each other alone run the explicit
-        # default (on the crossing at 31 elements, ROS34PW2 at rtol 1e-2 with the
-        # pair in W took 2.3 times Tsit5's time, to the same shape)
-        obstacles = contact and bool(mdl.linkage.contact.obstacles)
-        solver, rtol, atol = self._tolerances(obstacles)
+        solver, rtol, atol = self._tolerances(contact and _implicit(mdl.plan, mdl))
         n = mdl.linkage.n_dof
         B = len(members)
         y = jnp.tile(jnp.concatenate([mdl.q0, jnp.zeros(n)])[None], (B, 1))
