@@ -27,6 +27,9 @@ import pytest
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 PAGES = sorted(DOCS.rglob("*.md")) + [ROOT / "README.md"]
+GUIDE = [p for p in PAGES if p.parent.name in ("guide", "api")]
+"""The user guide's and the API's pages: this file runs them; the others run in
+``test_docs_pages.py``, so that the two halves share the test workers."""
 SKIP_MARK = "# not run:"
 
 _FENCE = re.compile(r"^(?P<indent>[ \t]*)(?P<fence>`{3,}|~{3,})[ \t]*(?P<info>[^`\s]*)")
@@ -64,9 +67,14 @@ def _rel(page: pathlib.Path) -> str:
     return page.relative_to(ROOT).as_posix()
 
 
-@pytest.mark.parametrize("page", PAGES, ids=_rel)
+@pytest.mark.parametrize("page", GUIDE, ids=_rel)
 def test_page_snippets(page, tmp_path, monkeypatch):
     """Every ```python block of the page runs without error or warning."""
+    run_page(page, tmp_path, monkeypatch)
+
+
+def run_page(page, tmp_path, monkeypatch):
+    """Run a page's ```python blocks in order in one namespace (see the module)."""
     import matplotlib
 
     matplotlib.use("Agg")
