@@ -4,8 +4,9 @@ name.
 
 Code blocks: the ```python blocks of one page run in order in one shared namespace, in
 a temporary working directory, with matplotlib's Agg backend; nothing is pre-imported.
-A block whose first line starts with ``# not run:`` (followed by the reason) is shown
-on the site but not run. Under the suite's ``filterwarnings = error`` a snippet that
+A block whose first line starts with ``# not run:`` (followed by the reason: a long
+compile or solve) is shown on the site and left out of the default run; the slow tests
+(``-m slow``) run those pages with every block. Under the suite's ``filterwarnings = error`` a snippet that
 warns fails, as a user would want to know. A failure names the page, the block's number
 on the page and the line in the page's file. Each block's time is printed (shown
 with ``-s`` or ``-rP``).
@@ -73,8 +74,26 @@ def test_page_snippets(page, tmp_path, monkeypatch):
     run_page(page, tmp_path, monkeypatch)
 
 
-def run_page(page, tmp_path, monkeypatch):
-    """Run a page's ```python blocks in order in one namespace (see the module)."""
+LONG = [
+    p
+    for p in PAGES
+    if any(c.lstrip().startswith(SKIP_MARK) for _, c in python_blocks(p.read_text()))
+]
+"""Pages with blocks left out of the default run."""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("page", LONG, ids=_rel)
+def test_page_snippets_with_long_blocks(page, tmp_path, monkeypatch):
+    """The pages with ``# not run:`` blocks, every block run."""
+    run_page(page, tmp_path, monkeypatch, everything=True)
+
+
+def run_page(page, tmp_path, monkeypatch, everything=False):
+    """Run a page's ```python blocks in order in one namespace (see the module).
+
+    ``everything``: also the blocks marked ``# not run:``.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -85,7 +104,7 @@ def run_page(page, tmp_path, monkeypatch):
     namespace = {"__name__": "__main__"}
     try:
         for k, (line0, code) in enumerate(blocks, start=1):
-            if code.lstrip().startswith(SKIP_MARK):
+            if code.lstrip().startswith(SKIP_MARK) and not everything:
                 continue
             filename = f"{_rel(page)} [block {k}]"
             # line numbers in the compiled code are those of the page's file
