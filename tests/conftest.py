@@ -68,22 +68,25 @@ jax.config.update("jax_persistent_cache_min_entry_size_bytes", -1)
 # files in this order, each the next one when it is free, so that no long file is
 # left to run alone at the end. Unlisted files follow in their own order.
 _HEAVY_FIRST = (
-    "test_closed_loops.py",  # 64 s
-    "test_dynamics.py",  # 58
-    "test_actuation.py",  # 56
-    "test_statics.py",  # 54
-    "test_env.py",  # 53
-    "test_example_learn.py",  # 46
-    "test_rosenbrock.py",  # 45
+    "test_contact.py",  # 98 s
+    "test_docs.py",  # 97
+    "test_docs_pages.py",  # 75
+    "test_closed_loops.py",  # 68
+    "test_statics.py",  # 61
+    "test_dynamics.py",  # 56
+    "test_example_learn.py",  # 55
+    "test_actuation.py",  # 54
+    "test_rosenbrock.py",  # 53
+    "test_jit.py",  # 50
+    "test_adequacy.py",  # 49
+    "test_size_class.py",  # 46
     "test_integrate.py",  # 38
-    "test_kinematics.py",  # 37
-    "test_examples.py",  # 33
-    "test_adequacy.py",  # 32
-    "test_stability.py",  # 30
-    "test_lie.py",  # 29
-    "test_size_class.py",  # 25
-    "test_example_design.py",  # 22
-    "test_jit.py",  # 19
+    "test_example_design.py",  # 38
+    "test_examples.py",  # 36
+    "test_env.py",  # 34
+    "test_kinematics.py",  # 34
+    "test_example_identification.py",  # 30
+    "test_lie.py",  # 23
 )
 
 
