@@ -29,6 +29,18 @@ the 8-DoF arm's statics unchunked at 1024 cases). Keep ``chunk x n^2`` at most
 The batch is padded to a whole number of chunks with copies of its last case and
 the padding is dropped from the result.
 
+Checkpoints (``checkpoint=FOLDER``): the cases run in blocks of ``block`` cases, one
+block after another, and each finished block's outputs are saved in the folder as
+``block_NNNNNN.npz`` (written to a temporary file and moved into place, so a killed
+run leaves whole blocks only). A run with the same folder and the same inputs loads
+the saved blocks and computes only the missing ones; ``progress(block, n_blocks,
+computed)`` is called after each block. The folder's ``sweep.json`` records the
+inputs' fingerprint (a SHA-256 of their leaves' bytes, shapes and dtypes), the block
+size and the number of cases; a run whose inputs or block size differ stops with an
+error instead of mixing or overwriting another sweep's results. Plain NumPy files
+rather than orbax: a block is a few arrays written once and read back once, on one
+host, and the files open without sorojax or JAX.
+
 What it does not do: change the solvers. A vmapped ``solve_statics`` runs its
 Newton loop until the slowest case of its chunk converges (converged cases idle in
 the loop), and a vmapped ``simulate`` takes the adaptive steps of its
@@ -37,6 +49,9 @@ that matters.
 """
 
 import functools
+import hashlib
+import json
+import os
 from collections.abc import Callable, Sequence
 from typing import Literal
 
@@ -45,6 +60,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._jit import compiler_options
+from .io._files import as_path, writing
 
 
 def _batch_size(args) -> int:
@@ -89,11 +105,71 @@ def _compiled(fn, chunk, devices):
     return jax.jit(local, compiler_options=compiler_options())
 
 
+def _fingerprint(args, block: int) -> dict:
+    """What identifies a checkpointed sweep: its inputs, the block size, the count."""
+    h = hashlib.sha256()
+    leaves, treedef = jax.tree.flatten(args)
+    h.update(str(treedef).encode())
+    for x in leaves:
+        a = np.ascontiguousarray(np.asarray(x))
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        h.update(a.tobytes())
+    return {
+        "inputs_sha256": h.hexdigest(),
+        "block": int(block),
+        "cases": _batch_size(args),
+    }
+
+
+def _open_checkpoint(folder, args, block: int):
+    """The checkpoint folder, created or checked against this sweep's fingerprint."""
+    folder = as_path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    meta = _fingerprint(args, block)
+    path = folder / "sweep.json"
+    if path.exists():
+        saved = json.loads(path.read_text())
+        if saved != meta:
+            what = [k for k in meta if saved.get(k) != meta[k]]
+            raise ValueError(
+                f"sweep: checkpoint = {str(folder)!r} holds another sweep (its "
+                f"{', '.join(what)} differ: saved {[saved.get(k) for k in what]}, "
+                f"now {[meta[k] for k in what]}); its results were left unchanged. "
+                "Give a new folder, or delete this one to start over."
+            )
+    else:
+        with writing(path, overwrite=False) as tmp:
+            tmp.write_text(json.dumps(meta, indent=1) + "\n")
+    return folder
+
+
+def _save_block(path, out) -> None:
+    leaves = jax.tree.leaves(out)
+    with writing(path, overwrite=False) as tmp:
+        with open(tmp, "wb") as f:
+            np.savez(f, *[np.asarray(x) for x in leaves])
+
+
+def _load_block(path, treedef):
+    with np.load(path) as data:
+        leaves = [data[f"arr_{i}"] for i in range(len(data.files))]
+    if len(leaves) != treedef.num_leaves:
+        raise ValueError(
+            f"sweep: {str(path)!r} holds {len(leaves)} arrays where the function "
+            f"returns {treedef.num_leaves}: it was written by another function; "
+            "give a new checkpoint folder."
+        )
+    return jax.tree.unflatten(treedef, [jnp.asarray(x) for x in leaves])
+
+
 def sweep(
     fn: Callable,
     *args,
     chunk: int | Literal["auto"] | None = "auto",
     devices: Sequence[jax.Device] | None = None,
+    checkpoint: str | os.PathLike | None = None,
+    block: int | None = None,
+    progress: Callable[[int, int, bool], None] | None = None,
 ):
     """``jax.vmap(fn)(*args)``, compiled once and sharded over the devices.
 
@@ -108,13 +184,20 @@ def sweep(
             share at once) or ``"auto"`` (8 on CPU devices, at most the share;
             all at once on other backends).
         devices: the devices to use (default ``jax.devices()``).
+        checkpoint: a folder: save each finished block of cases there, and load
+            the blocks a former run with the same inputs saved (module notes).
+        block: cases per saved block (default: 64 passes of every device, at
+            most all the cases); only with ``checkpoint``.
+        progress: called as ``progress(block, n_blocks, computed)`` after each
+            block with ``checkpoint`` (``computed`` False: loaded from the folder).
 
     Returns:
         ``fn``'s outputs stacked along a leading axis, one row per case (on the
         first device).
 
     Raises:
-        ValueError: no cases, leading axes that differ, or ``chunk`` < 1.
+        ValueError: no cases, leading axes that differ, ``chunk`` or ``block`` <
+            1, or a checkpoint folder that holds another sweep.
 
     Example:
         On a CPU, set ``XLA_FLAGS=--xla_force_host_platform_device_count=2`` (one
@@ -138,6 +221,43 @@ def sweep(
     if chunk is not None and chunk < 1:
         raise ValueError(f"sweep: chunk = {chunk}; give a positive number of cases.")
     per_pass = n_dev * (1 if chunk is None else chunk)
+    if checkpoint is None:
+        if block is not None or progress is not None:
+            raise ValueError(
+                "sweep: block and progress apply to checkpointed sweeps only; give "
+                "checkpoint=FOLDER too, or leave them out."
+            )
+        return _run(fn, args, n, chunk, devices, per_pass)
+    if block is None:
+        block = min(64 * per_pass, n)
+    if int(block) < 1:
+        raise ValueError(f"sweep: block = {block}; give a positive number of cases.")
+    block = int(block)
+    folder = _open_checkpoint(checkpoint, args, block)
+    n_blocks = -(-n // block)
+    one = jax.tree.map(lambda x: x[:1], args)
+    treedef = jax.tree.structure(jax.eval_shape(jax.vmap(fn), *one))
+    parts = []
+    for b in range(n_blocks):
+        path = folder / f"block_{b:06d}.npz"
+        computed = not path.exists()
+        if computed:
+            part = jax.tree.map(lambda x, b=b: x[b * block : (b + 1) * block], args)
+            out = _run(fn, part, _batch_size(part), chunk, devices, per_pass)
+            _save_block(path, out)
+        else:
+            out = _load_block(path, treedef)
+        parts.append(out)
+        if progress is not None:
+            progress(b, n_blocks, computed)
+    if n_blocks == 1:
+        return parts[0]
+    return jax.tree.map(lambda *ys: jnp.concatenate(ys), *parts)
+
+
+def _run(fn, args, n: int, chunk, devices, per_pass: int):
+    """One pass of ``sweep`` over ``n`` cases (no checkpoint)."""
+    n_dev = len(devices)
     padded = -(-n // per_pass) * per_pass  # whole passes of every device
     if padded != n:
         args = jax.tree.map(
