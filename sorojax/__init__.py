@@ -29,6 +29,7 @@ _LAZY = {
     "RESULTS": "._results",
     "StaticsSolution": "._results",
     "sweep": "._sweep",
+    "initialize_processes": "._sweep",
     "Environment": ".control",
     "EnvState": ".control",
     "rollout": ".control",
@@ -161,6 +162,7 @@ if TYPE_CHECKING:  # static analysers see the names as plain imports
     from ._recompile import RecompilationWarning as RecompilationWarning
     from ._results import RESULTS as RESULTS
     from ._results import StaticsSolution as StaticsSolution
+    from ._sweep import initialize_processes as initialize_processes
     from ._sweep import sweep as sweep
     from .control import Environment as Environment
     from .control import EnvState as EnvState

@@ -29,6 +29,14 @@ the 8-DoF arm's statics unchunked at 1024 cases). Keep ``chunk x n^2`` at most
 The batch is padded to a whole number of chunks with copies of its last case and
 the padding is dropped from the result.
 
+Several processes (``jax.distributed``, one per host or per GPU; on one machine,
+``N`` local processes started with :func:`initialize_processes`): each process takes
+an even share of the cases (the last ones padded with copies of the last case), runs
+it on its own local devices as above, and the outputs are gathered to every process
+by ``jax.experimental.multihost_utils.process_allgather``, the only communication
+of the sweep (``gather=False`` keeps each process's own rows instead). A
+single-process run is unchanged.
+
 Checkpoints (``checkpoint=FOLDER``): the cases run in blocks of ``block`` cases, one
 block after another, and each finished block's outputs are saved in the folder as
 ``block_NNNNNN.npz`` (written to a temporary file and moved into place, so a killed
@@ -105,6 +113,32 @@ def _compiled(fn, chunk, devices):
     return jax.jit(local, compiler_options=compiler_options())
 
 
+def initialize_processes(
+    coordinator_address: str | None = None,
+    num_processes: int | None = None,
+    process_id: int | None = None,
+) -> None:
+    """Join a multi-process JAX run (``jax.distributed.initialize``) for sweeps.
+
+    Call it first, before any JAX computation, in every process. With no arguments
+    JAX detects the cluster (SLURM, Open MPI, cloud TPU/GPU environments); on one
+    machine give ``coordinator_address="localhost:PORT"``, ``num_processes`` and each
+    process's ``process_id``. CPU processes gather through gloo, which this sets as
+    JAX's CPU collectives backend (GPUs use NCCL, JAX's default).
+
+    Args:
+        coordinator_address: ``"host:port"`` of process 0.
+        num_processes: how many processes take part.
+        process_id: this process's number, 0 to ``num_processes - 1``.
+    """
+    jax.config.update("jax_cpu_collectives_implementation", "gloo")
+    jax.distributed.initialize(
+        coordinator_address=coordinator_address,
+        num_processes=num_processes,
+        process_id=process_id,
+    )
+
+
 def _fingerprint(args, block: int) -> dict:
     """What identifies a checkpointed sweep: its inputs, the block size, the count."""
     h = hashlib.sha256()
@@ -170,6 +204,7 @@ def sweep(
     checkpoint: str | os.PathLike | None = None,
     block: int | None = None,
     progress: Callable[[int, int, bool], None] | None = None,
+    gather: bool = True,
 ):
     """``jax.vmap(fn)(*args)``, compiled once and sharded over the devices.
 
@@ -183,13 +218,18 @@ def sweep(
         chunk: cases per device per pass: a number, None (all of a device's
             share at once) or ``"auto"`` (8 on CPU devices, at most the share;
             all at once on other backends).
-        devices: the devices to use (default ``jax.devices()``).
+        devices: the devices to use (default ``jax.devices()``, or in a run of
+            several processes each process's ``jax.local_devices()``).
         checkpoint: a folder: save each finished block of cases there, and load
             the blocks a former run with the same inputs saved (module notes).
         block: cases per saved block (default: 64 passes of every device, at
             most all the cases); only with ``checkpoint``.
         progress: called as ``progress(block, n_blocks, computed)`` after each
             block with ``checkpoint`` (``computed`` False: loaded from the folder).
+        gather: in a run of several processes, gather every process's outputs to
+            every process (default); False returns ``(rows, (start, stop))``: this
+            process's outputs and the cases they belong to (in one process, all of
+            them: the same script runs on one process or several).
 
     Returns:
         ``fn``'s outputs stacked along a leading axis, one row per case (on the
@@ -205,6 +245,13 @@ def sweep(
 
             tips = sorojax.sweep(tip_of_load, jnp.linspace(0.0, 10.0, 1024))
     """
+    n_proc = jax.process_count()
+    if n_proc > 1 and devices is None:
+        return _across_processes(fn, args, chunk, checkpoint, block, progress, gather)
+    if not gather:  # one process holds every row
+        out = sweep(fn, *args, chunk=chunk, devices=devices, checkpoint=checkpoint,
+                    block=block, progress=progress)  # fmt: skip
+        return out, (0, _batch_size(args))
     devices = tuple(jax.devices() if devices is None else devices)
     n = _batch_size(args)
     if n == 0:
@@ -253,6 +300,33 @@ def sweep(
     if n_blocks == 1:
         return parts[0]
     return jax.tree.map(lambda *ys: jnp.concatenate(ys), *parts)
+
+
+def _across_processes(fn, args, chunk, checkpoint, block, progress, gather):
+    """``sweep`` in a run of several processes (module notes)."""
+    from jax.experimental import multihost_utils
+
+    if checkpoint is not None:
+        raise ValueError(
+            "sweep: checkpoint with several processes is not supported; give each "
+            "process its own cases and folder (sweep(..., devices="
+            "jax.local_devices(), checkpoint=...)), or run one process."
+        )
+    n = _batch_size(args)
+    if n == 0:
+        raise ValueError("sweep: no cases (the leading axis has length 0).")
+    p, n_proc = jax.process_index(), jax.process_count()
+    share = -(-n // n_proc)
+    start, stop = min(p * share, n), min((p + 1) * share, n)
+    # every process runs `share` cases (shapes agree for the gather): its own, padded
+    # with copies of the last case (all copies for a process past the end)
+    idx = np.minimum(np.arange(start, start + share), n - 1)
+    mine = jax.tree.map(lambda x: jnp.asarray(x)[idx], args)
+    out = sweep(fn, *mine, chunk=chunk, devices=jax.local_devices())
+    if not gather:
+        return jax.tree.map(lambda y: y[: stop - start], out), (start, stop)
+    rows = multihost_utils.process_allgather(out, tiled=True)
+    return jax.tree.map(lambda y: jnp.asarray(y[:n]), rows)
 
 
 def _run(fn, args, n: int, chunk, devices, per_pass: int):
