@@ -16,22 +16,7 @@ jax.config.update("jax_enable_x64", True)
 
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
-
-from sorojax.scenes import cantilever  # noqa: E402
-
-
-def tip_y(P):
-    rod = cantilever(
-        1.0,
-        0.01,
-        1e7,
-        modes=(0, 0, 1, 0, 0, 0),
-        order=2,
-        tip_wrench=jnp.stack([0.0, 0.0, 0.0, 0.0, P, 0.0]),
-    )
-    sol = sj.solve_statics(rod, throw=False)
-    return sj.tip_pose(rod, sol.q)[1, 3], sol.result._value
-
+from test_sweep import _tip_y as tip_y  # noqa: E402  (the same cases as test_sweep)
 
 P = jnp.linspace(0.1, 2.0, 7)  # 7 cases: uneven over 2 processes
 tips, codes = sj.sweep(tip_y, P)
