@@ -1,6 +1,9 @@
-"""One process of tests/test_sweep_processes.py: a sweep of cantilever statics.
+"""One process of tests/test_sweep_processes.py: a sweep of statics.
 
-Usage: python _sweep_worker.py PROCESS_ID N_PROCESSES PORT OUT.npz
+Usage: python _sweep_worker.py PROCESS_ID N_PROCESSES PORT OUT.npz [arm]
+
+Seven cantilever loads, or with ``arm`` 256 random tension sets of the four-cable
+arm (``benchmarks/sweeps.py``'s statics cases).
 """
 
 import sys
@@ -18,9 +21,21 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 from test_sweep import _tip_y as tip_y  # noqa: E402  (the same cases as test_sweep)
 
-P = jnp.linspace(0.1, 2.0, 7)  # 7 cases: uneven over 2 processes
-tips, codes = sj.sweep(tip_y, P)
-(mine, _), (start, stop) = sj.sweep(tip_y, P, gather=False)
+if sys.argv[5:] == ["arm"]:
+    from sorojax._mechanisms import cable_manipulator
+
+    ARM = cable_manipulator(order=1, eta=3e4)
+
+    def case(T):
+        sol = sj.solve_statics(ARM, u=T, throw=False)
+        return sj.tip_pose(ARM, sol.q)[:3, 3], sol.result._value
+
+    P = 10.0 * jax.random.uniform(jax.random.key(0), (256, 4))
+else:
+    case = tip_y
+    P = jnp.linspace(0.1, 2.0, 7)  # 7 cases: uneven over 2 processes
+tips, codes = sj.sweep(case, P)
+(mine, _), (start, stop) = sj.sweep(case, P, gather=False)
 np.savez(
     out,
     tips=np.asarray(tips),
