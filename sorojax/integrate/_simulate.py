@@ -46,7 +46,7 @@ from ..dynamics._eom import (
 )
 from ..kinematics._api import _as_q
 from ..kinematics._recursion import kinematics_and_rates
-from ..model._checks import check_finite, is_concrete
+from ..model._checks import check_finite, check_tolerances, is_concrete
 from ..model._link import SoftLink
 from ..model._linkage import Linkage
 from ..model._precompute import precompute
@@ -673,16 +673,12 @@ def _check_span(t0, t1, ts) -> None:
 def _check_steps(rtol, atol, dt0, adaptive) -> None:
     """Refuse step-control settings that cannot work (concrete values only)."""
     if adaptive:
-        for name, value in (("rtol", rtol), ("atol", atol)):
-            if is_concrete(value) and not 0 <= float(value) < math.inf:
-                raise ValueError(
-                    f"{name} = {value!r}: give a finite tolerance >= 0 (defaults "
-                    "rtol 1e-3, atol 1e-5)."
-                )
-        if is_concrete(rtol) and is_concrete(atol) and float(rtol) + float(atol) == 0:
-            raise ValueError(
-                "rtol = atol = 0: no step would ever be accepted; give either > 0."
-            )
+        check_tolerances(
+            rtol,
+            atol,
+            "defaults rtol 1e-3, atol 1e-5",
+            "no step would ever be accepted",
+        )
     if dt0 is not None and is_concrete(dt0) and not 0 < float(dt0) < math.inf:
         raise ValueError(
             f"dt0 = {dt0!r}: give the (initial) step in seconds, finite and > 0, or "

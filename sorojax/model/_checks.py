@@ -4,6 +4,8 @@ Checks run only on concrete values; inside ``jit``/``grad`` traces the values ar
 abstract and are checked where they were built instead.
 """
 
+import math
+
 import jax
 import numpy as np
 
@@ -32,6 +34,21 @@ def check_finite(field: str, value, fix: str = "give finite numbers") -> None:
     if not np.all(np.isfinite(arr)):
         shown = arr.tolist() if arr.size <= 8 else "an array with non-finite entries"
         raise ValueError(f"{field} = {shown} is not finite: {fix}.")
+
+
+def check_tolerances(rtol, atol, defaults: str, never: str) -> None:
+    """Raise ``ValueError`` unless concrete tolerances are finite, >= 0, not both 0.
+
+    ``defaults`` names the defaults in the message (e.g. ``"default 1e-10"``),
+    ``never`` what both at 0 would mean (e.g. ``"Newton can never stop"``).
+    """
+    for name, value in (("rtol", rtol), ("atol", atol)):
+        if is_concrete(value) and not 0 <= float(value) < math.inf:
+            raise ValueError(
+                f"{name} = {value!r}: give a finite tolerance >= 0 ({defaults})."
+            )
+    if is_concrete(rtol) and is_concrete(atol) and float(rtol) + float(atol) == 0:
+        raise ValueError(f"rtol = atol = 0: {never}; give either > 0.")
 
 
 def check_shape(field: str, value, shape: tuple[int, ...]) -> None:

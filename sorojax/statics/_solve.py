@@ -52,7 +52,7 @@ from ..dynamics._generalized import kinematics_from_data
 from ..dynamics._wrench_recursion import force_from_wrenches, poses_with_records
 from ..kinematics._api import _as_q
 from ..kinematics._recursion import poses
-from ..model._checks import check_finite, is_concrete
+from ..model._checks import check_finite, check_tolerances, is_concrete
 from ..model._linkage import Linkage
 from ..model._precompute import LinkageData, precompute
 from ._stability import (
@@ -762,13 +762,7 @@ def _check_settings(max_steps, rtol, atol, load_increment) -> None:
     """Refuse solver settings that cannot work (concrete values only)."""
     if not isinstance(max_steps, int | np.integer) or max_steps < 1:
         raise ValueError(f"max_steps = {max_steps!r}: give an integer >= 1.")
-    for name, value in (("rtol", rtol), ("atol", atol)):
-        if is_concrete(value) and not 0 <= float(value) < math.inf:
-            raise ValueError(
-                f"{name} = {value!r}: give a finite tolerance >= 0 (default 1e-10)."
-            )
-    if is_concrete(rtol) and is_concrete(atol) and float(rtol) + float(atol) == 0:
-        raise ValueError("rtol = atol = 0: Newton can never stop; give either > 0.")
+    check_tolerances(rtol, atol, "default 1e-10", "Newton can never stop")
     if is_concrete(load_increment) and not 0 < float(load_increment) < math.inf:
         raise ValueError(
             f"load_increment = {load_increment!r}: give the target coordinate change "
