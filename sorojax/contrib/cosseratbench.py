@@ -1163,18 +1163,13 @@ def _mass_damping_points(rate: float, per_point: tuple[tuple[float, ...], ...]):
     return hook
 
 
-def _high_order(plan: _Plan) -> bool:
-    """Whether a rod-pair scene's bending order reaches :data:`PAIR_IMPLICIT_ORDER`."""
-    return max(plan.orders) >= PAIR_IMPLICIT_ORDER
-
-
-def _implicit(plan: _Plan, mdl: _Model) -> bool:
+def _implicit(plan: _Plan, obstacles: bool) -> bool:
     """Whether a contact scene runs ROS34PW2.
 
     Obstacles (their stiffness and sticking friction would bound an explicit step)
-    or a high-order rod pair do.
+    or a rod pair whose bending order reaches :data:`PAIR_IMPLICIT_ORDER` do.
     """
-    return bool(mdl.linkage.contact.obstacles) or _high_order(plan)
+    return obstacles or max(plan.orders) >= PAIR_IMPLICIT_ORDER
 
 
 def _joint(kind: str, normal_local) -> sj.Joint:
@@ -1322,7 +1317,7 @@ class SorojaxSolver:
                 entry["if_unstable"] = "damped dynamics (mass-proportional)"
             else:
                 solver, rtol, atol = self._tolerances(
-                    contact and (bool(scenario.obstacles) or _high_order(plan))
+                    contact and _implicit(plan, bool(scenario.obstacles))
                 )
                 entry.update(solver=solver, rtol=rtol, atol=atol, adaptive=True)
             if plan.method == "damped":
@@ -1494,7 +1489,12 @@ class SorojaxSolver:
         self, models, members, times, contact: bool = False, state: bool = False
     ):
         mdl = models[members[0]]
-        solver, rtol, atol = self._tolerances(contact and _implicit(mdl.plan, mdl))
+        obstacles = bool(
+            mdl.linkage.contact is not None and mdl.linkage.contact.obstacles
+        )
+        solver, rtol, atol = self._tolerances(
+            contact and _implicit(mdl.plan, obstacles)
+        )
         n = mdl.linkage.n_dof
         B = len(members)
         y = jnp.tile(jnp.concatenate([mdl.q0, jnp.zeros(n)])[None], (B, 1))
