@@ -322,7 +322,11 @@ def _across_processes(fn, args, chunk, checkpoint, block, progress, gather):
     # with copies of the last case (all copies for a process past the end)
     idx = np.minimum(np.arange(start, start + share), n - 1)
     mine = jax.tree.map(lambda x: jnp.asarray(x)[idx], args)
-    out = sweep(fn, *mine, chunk=chunk, devices=jax.local_devices())
+    # (block or progress without a checkpoint are refused there, as in one process)
+    out = sweep(
+        fn, *mine, chunk=chunk, devices=jax.local_devices(), block=block,
+        progress=progress,
+    )  # fmt: skip
     if not gather:
         return jax.tree.map(lambda y: y[: stop - start], out), (start, stop)
     rows = multihost_utils.process_allgather(out, tiled=True)
