@@ -30,6 +30,7 @@ _LAZY = {
     "StaticsSolution": "._results",
     "sweep": "._sweep",
     "initialize_processes": "._sweep",
+    "process_sum": "._sweep",
     "Environment": ".control",
     "EnvState": ".control",
     "rollout": ".control",
@@ -163,6 +164,7 @@ if TYPE_CHECKING:  # static analysers see the names as plain imports
     from ._results import RESULTS as RESULTS
     from ._results import StaticsSolution as StaticsSolution
     from ._sweep import initialize_processes as initialize_processes
+    from ._sweep import process_sum as process_sum
     from ._sweep import sweep as sweep
     from .control import Environment as Environment
     from .control import EnvState as EnvState

@@ -35,7 +35,8 @@ an even share of the cases (the last ones padded with copies of the last case), 
 it on its own local devices as above, and the outputs are gathered to every process
 by ``jax.experimental.multihost_utils.process_allgather``, the only communication
 of the sweep (``gather=False`` keeps each process's own rows instead). A
-single-process run is unchanged.
+single-process run is unchanged. :func:`process_sum` adds a pytree over the
+processes the same way (the gradients of a data-parallel training step).
 
 Checkpoints (``checkpoint=FOLDER``): the cases run in blocks of ``block`` cases, one
 block after another, and each finished block's outputs are saved in the folder as
@@ -137,6 +138,59 @@ def initialize_processes(
         num_processes=num_processes,
         process_id=process_id,
     )
+
+
+def process_sum(tree):
+    """Sum a pytree of arrays over the processes of a multi-process run.
+
+    Every process passes a pytree of the same structure, shapes and dtypes (e.g.
+    the gradient of its share of a batch) and receives the leaf-wise sum over all
+    processes, the same on every process: every process's arrays are gathered
+    (``jax.experimental.multihost_utils.process_allgather``, one gather per dtype
+    of the leaves) and added in process order on the host. For data-parallel
+    training, let each process compute the *summed* loss of its share divided by
+    the global batch size: the shares' gradients then add up to the gradient of the
+    batch's mean loss, for any split of the batch. In one process the tree is
+    returned unchanged (so the same code runs there, inside ``jax.jit`` too).
+
+    Args:
+        tree: a pytree of arrays (concrete values: call it outside ``jax.jit`` in a
+            run of several processes).
+
+    Returns:
+        The pytree of sums (JAX arrays of the leaves' dtypes and shapes).
+
+    Raises:
+        TypeError: a leaf is traced (inside ``jit``, ``grad`` or ``vmap``) in a run
+            of several processes.
+
+    Example:
+        Each process's share of a batch, then the same update everywhere::
+
+            loss, grads = sorojax.process_sum(share_loss_and_grads(params, mine))
+    """
+    if jax.process_count() == 1:
+        return tree
+    from jax.experimental import multihost_utils
+
+    leaves, treedef = jax.tree.flatten(tree)
+    if any(isinstance(x, jax.core.Tracer) for x in leaves):
+        raise TypeError(
+            "process_sum: a leaf is traced; in a run of several processes call it "
+            "outside jax.jit / grad / vmap, on concrete arrays (e.g. between a "
+            "jitted gradient and a jitted update)."
+        )
+    arrays = [np.asarray(x) for x in leaves]
+    sums: list = [None] * len(arrays)
+    # one gather per dtype: the leaves of a dtype travel as one flat vector
+    for dtype in {a.dtype for a in arrays}:
+        which = [i for i, a in enumerate(arrays) if a.dtype == dtype]
+        flat = np.concatenate([arrays[i].ravel() for i in which])
+        total = np.sum(multihost_utils.process_allgather(flat), axis=0)
+        cuts = np.cumsum([arrays[i].size for i in which])[:-1]
+        for i, part in zip(which, np.split(total, cuts), strict=True):
+            sums[i] = jnp.asarray(part.reshape(arrays[i].shape), dtype=dtype)
+    return jax.tree.unflatten(treedef, sums)
 
 
 def _fingerprint(args, block: int) -> dict:
