@@ -22,13 +22,26 @@ held-out targets against two PD controllers on the lateral tip position (the law
 ``cable_manipulator.py``): with the *exact* feedforward tensions of each target (an
 oracle: the tensions that generated it) and without feedforward (pretension only).
 
+Data-parallel training over processes: :func:`make_train_step` splits each batch
+evenly over the processes of a ``jax.distributed`` run (``--processes N
+--process-id P --port PORT``, one command per process, on one machine); each
+process differentiates its share's summed loss over the whole batch size, and
+``sorojax.process_sum`` adds the shares' losses and gradients, so every process
+applies the same Adam update (in one process the step is one compiled program).
+``--checkpoint FOLDER`` saves the step, the weights, Adam's state and the losses
+every ``--checkpoint-every`` steps (:func:`train`); a run with the same folder and
+arguments resumes from the last save.
+
 Run::
 
     python examples/learn_reach.py [--iterations 150] [--batch 64] [--out DIR]
+        [--checkpoint FOLDER] [--processes N --process-id P --port PORT]
 """
 
 import argparse
 import functools
+import json
+import os
 import pathlib
 import time
 
@@ -109,25 +122,205 @@ class Policy(eqx.Module):
         return self.scale * jax.nn.softplus(self.mlp(obs))
 
 
-def episode(env, policy, s0, target):
+def episode(env, policy, s0, target, periods=EPISODE):
     """Tip positions after each period under ``policy`` (a scan over steps)."""
 
     def body(s, _):
         s1 = env.step(s, policy(env, s, target))
         return s1, (env.tip_position(s1), s1.u, s1.result)
 
-    _, (tips, u, results) = jax.lax.scan(body, s0, None, length=EPISODE)
+    _, (tips, u, results) = jax.lax.scan(body, s0, None, length=periods)
     return tips, u, results
 
 
-WEIGHTS = jnp.linspace(0.2, 1.0, EPISODE) ** 2  # later periods count more
+def loss_fn(policy, env, s0, targets, batch=None, periods=EPISODE):
+    """Summed loss of ``targets`` over ``batch`` (default: their number) [m^2].
 
-
-def loss_fn(policy, env, s0, targets):
-    """Weighted mean squared tip distance [m^2] (+ effort) over a batch of targets."""
-    tips, u, _ = jax.vmap(lambda t: episode(env, policy, s0, t))(targets)
+    A target's loss is its weighted mean squared tip distance over the episode
+    (later periods weighted more) plus a small effort term; with ``batch`` the
+    size of the whole batch, the losses of its shares add up to its mean loss.
+    """
+    weights = np.linspace(0.2, 1.0, periods) ** 2  # later periods count more
+    tips, u, _ = jax.vmap(lambda t: episode(env, policy, s0, t, periods))(targets)
     d2 = jnp.sum((tips - targets[:, None]) ** 2, axis=-1)
-    return jnp.mean(d2 * WEIGHTS[None]) / jnp.mean(WEIGHTS) + 1e-7 * jnp.mean(u**2)
+    per_target = jnp.mean(d2 * weights[None], axis=1) / np.mean(weights)
+    per_target = per_target + 1e-7 * jnp.mean(u**2, axis=(1, 2))
+    return jnp.sum(per_target) / (len(targets) if batch is None else batch)
+
+
+def make_train_step(env, s0, static, optimiser, pool, batch, periods=EPISODE):
+    """One Adam step on ``batch`` targets drawn from ``pool``, data-parallel.
+
+    Every process draws the same batch (the same key) and differentiates the loss
+    of its own share (``batch / jax.process_count()`` targets; the summed loss
+    over the whole batch size); ``sorojax.process_sum`` adds the shares' losses
+    and gradients, and every process applies the same update. In one process
+    this is one compiled program (gradient and update).
+
+    Args:
+        env: the environment.
+        s0: the initial state of every episode.
+        static: the policy's non-array part (``eqx.partition``).
+        optimiser: an optax optimiser.
+        pool: candidate targets ``(n_pool, 3)`` [m].
+        batch: targets per step, a multiple of the number of processes.
+        periods: control periods per episode.
+
+    Returns:
+        ``train_step(params, opt_state, key) -> (params, opt_state, loss)``,
+        ``loss`` the batch's mean loss before the update [m^2].
+
+    Raises:
+        ValueError: ``batch`` is not a multiple of the number of processes.
+    """
+    n_proc, rank = jax.process_count(), jax.process_index()
+    if batch % n_proc:
+        raise ValueError(
+            f"batch = {batch} does not split evenly over {n_proc} processes; give "
+            f"a multiple of {n_proc}."
+        )
+    share = batch // n_proc
+    options = sj.compiler_options()
+
+    def share_grads(params, key, start):
+        idx = jax.random.choice(key, pool.shape[0], (batch,), replace=False)
+        mine = pool[jax.lax.dynamic_slice_in_dim(idx, start, share)]
+        return jax.value_and_grad(
+            lambda p: loss_fn(eqx.combine(p, static), env, s0, mine, batch, periods)
+        )(params)
+
+    def update(params, opt_state, grads):
+        updates, opt_state = optimiser.update(grads, opt_state, params)
+        return optax.apply_updates(params, updates), opt_state
+
+    if n_proc == 1:
+
+        @functools.partial(jax.jit, compiler_options=options)
+        def train_step(params, opt_state, key):
+            loss, grads = share_grads(params, key, 0)
+            return *update(params, opt_state, grads), loss
+
+        return train_step
+
+    grads_jit = jax.jit(share_grads, compiler_options=options)
+    update_jit = jax.jit(update, compiler_options=options)
+
+    def train_step(params, opt_state, key):
+        # the only communication: the losses and gradients, summed on every process
+        loss, grads = sj.process_sum(grads_jit(params, key, rank * share))
+        return *update_jit(params, opt_state, grads), loss
+
+    return train_step
+
+
+def train(
+    train_step,
+    params,
+    opt_state,
+    keys,
+    checkpoint=None,
+    run=None,
+    every=10,
+    max_steps=None,
+):
+    """Run ``train_step`` once per key, saving and resuming from ``checkpoint``.
+
+    With ``checkpoint`` (a folder) the step index, ``params``, ``opt_state`` and
+    the losses are saved every ``every`` steps and at the end, as plain NumPy
+    (``state.npz``, written to a temporary file and moved into place, so a killed
+    run leaves the last whole save); ``run.json`` records ``run`` (the run's
+    arguments, a JSON-able dict). A folder whose ``run.json`` holds other
+    arguments is refused and left untouched; otherwise the run resumes after the
+    last saved step. In a run of several processes process 0 writes, and every
+    process reads (one machine or a shared file system).
+
+    Args:
+        train_step: ``(params, opt_state, key) -> (params, opt_state, loss)``.
+        params: the starting weights (their structure is the saved ones').
+        opt_state: the starting optimiser state (likewise).
+        keys: one key per step; their number is the run's number of steps.
+        checkpoint: a folder, or None (no saving).
+        run: the run's arguments, checked against the folder's.
+        every: steps between saves.
+        max_steps: stop after computing this many steps (None: all): an
+            interrupted run, to be resumed.
+
+    Returns:
+        ``(params, opt_state, losses, computed)``: the losses of every step done
+        so far (loaded ones included) and how many steps this call computed.
+
+    Raises:
+        ValueError: the folder holds another run, or a state that does not fit.
+    """
+    losses, start = [], 0
+    path = None
+    write = jax.process_index() == 0
+    if checkpoint is not None:
+        folder = pathlib.Path(checkpoint)
+        meta = {"run": run or {}, "steps": len(keys)}
+        info = folder / "run.json"
+        if info.exists():
+            saved = json.loads(info.read_text())
+            if saved != meta:
+                raise ValueError(
+                    f"checkpoint folder {str(folder)!r} holds another run (saved "
+                    f"{saved}, this run {meta}); its files were left unchanged. "
+                    "Give a new --checkpoint folder, or delete this one to start "
+                    "over."
+                )
+        elif write:
+            folder.mkdir(parents=True, exist_ok=True)
+            _write_atomic(info, lambda f: f.write(json.dumps(meta, indent=1).encode()))
+        path = folder / "state.npz"
+        if path.exists():
+            params, opt_state, losses, start = _load_state(path, params, opt_state)
+    computed = 0
+    stop = len(keys) if max_steps is None else min(len(keys), start + max_steps)
+    for k in range(start, stop):
+        params, opt_state, loss = train_step(params, opt_state, keys[k])
+        losses.append(float(loss))
+        computed += 1
+        if path is not None and write and ((k + 1) % every == 0 or k + 1 == stop):
+            _save_state(path, k + 1, params, opt_state, losses)
+    return params, opt_state, losses, computed
+
+
+def _write_atomic(path, write):
+    """Write ``path`` through a temporary sibling moved into place when complete."""
+    tmp = path.with_name(f".{path.name}.partial")
+    with open(tmp, "wb") as f:
+        write(f)
+    os.replace(tmp, path)
+
+
+def _save_state(path, step, params, opt_state, losses):
+    arrays = {"step": np.asarray(step), "losses": np.asarray(losses)}
+    for name, tree in (("params", params), ("opt", opt_state)):
+        for i, leaf in enumerate(jax.tree.leaves(tree)):
+            arrays[f"{name}_{i}"] = np.asarray(leaf)
+    _write_atomic(path, lambda f: np.savez(f, **arrays))
+
+
+def _load_state(path, params, opt_state):
+    with np.load(path) as data:
+        step, losses = int(data["step"]), [float(x) for x in data["losses"]]
+        trees = []
+        for name, tree in (("params", params), ("opt", opt_state)):
+            leaves, treedef = jax.tree.flatten(tree)
+            saved = [data[f"{name}_{i}"] for i in range(len(leaves))
+                     if f"{name}_{i}" in data]  # fmt: skip
+            shapes = [np.shape(x) for x in leaves]
+            if [a.shape for a in saved] != shapes:
+                raise ValueError(
+                    f"{str(path)!r}: the saved {name} do not fit this run's "
+                    "(another policy or optimiser); give a new --checkpoint folder."
+                )
+            trees.append(jax.tree.unflatten(
+                treedef,
+                [jnp.asarray(a, dtype=jnp.asarray(x).dtype)
+                 for a, x in zip(saved, leaves, strict=True)],
+            ))  # fmt: skip
+    return trees[0], trees[1], losses, step
 
 
 def pd_policy(env, state, target, T_ff, feedforward):
@@ -180,10 +373,19 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default=".", help="folder for the PNG")
     ap.add_argument("--overwrite", action="store_true", help="replace an old PNG")
+    ap.add_argument("--checkpoint", default=None, help="folder: save and resume")
+    ap.add_argument("--checkpoint-every", type=int, default=10, help="steps")
+    ap.add_argument("--processes", type=int, default=1, help="data-parallel")
+    ap.add_argument("--process-id", type=int, default=0)
+    ap.add_argument("--port", type=int, default=12345, help="process 0's port")
     args = ap.parse_args(argv)
+    if args.processes > 1:  # before any JAX computation
+        sj.initialize_processes(
+            f"localhost:{args.port}", args.processes, args.process_id
+        )
     out = pathlib.Path(args.out)
     png = out / "learn_reach.png"
-    if png.exists() and not args.overwrite:
+    if png.exists() and not args.overwrite and jax.process_index() == 0:
         raise SystemExit(f"{png} exists; pass --overwrite to replace it.")
     sj.enable_compilation_cache()
     out.mkdir(parents=True, exist_ok=True)
@@ -205,24 +407,26 @@ def main(argv=None):
     optimiser = optax.adam(args.lr)
     opt_state = optimiser.init(params)
 
-    @functools.partial(jax.jit, compiler_options=sj.compiler_options())
-    def train_step(params, opt_state, key):
-        idx = jax.random.choice(key, pool.shape[0], (args.batch,), replace=False)
-        loss, grads = jax.value_and_grad(
-            lambda p: loss_fn(eqx.combine(p, static), env, s0, pool[idx])
-        )(params)
-        updates, opt_state = optimiser.update(grads, opt_state, params)
-        return optax.apply_updates(params, updates), opt_state, loss
+    train_step = make_train_step(env, s0, static, optimiser, pool, args.batch)
+    timed = []
 
-    losses, t_compile = [], None
+    def timed_step(*a):  # the first step's time includes the compile
+        t = time.perf_counter()
+        result = jax.block_until_ready(train_step(*a))
+        timed.append(time.perf_counter() - t)
+        return result
+
     keys = jax.random.split(jax.random.key(args.seed + 1), args.iterations)
+    run = {k: vars(args)[k] for k in ("iterations", "batch", "lr", "seed")}
     t_train = time.perf_counter()
-    for k in range(args.iterations):
-        params, opt_state, loss = train_step(params, opt_state, keys[k])
-        losses.append(float(loss))
-        if k == 0:
-            t_compile = time.perf_counter() - t_train
+    params, opt_state, losses, computed = train(
+        timed_step, params, opt_state, keys, args.checkpoint, run,
+        every=args.checkpoint_every,
+    )  # fmt: skip
     t_train = time.perf_counter() - t_train
+    t_compile = timed[0] if timed else 0.0
+    if jax.process_index() > 0:  # process 0 evaluates and plots
+        return {"losses": np.asarray(losses), "steps_computed": computed}
     policy = eqx.combine(params, static)
 
     err_mlp, tips_mlp = evaluate(env, s0, test_targets, test_T, policy=policy)
@@ -247,6 +451,8 @@ def main(argv=None):
         "loss_first": losses[0],
         "loss_last": float(np.mean(losses[-10:])),
         "losses": np.asarray(losses),
+        "steps_computed": computed,
+        "processes": jax.process_count(),
         "target_distance_median_m": spread,
         "mlp_error_median_m": float(np.median(err_mlp)),
         "mlp_error_p90_m": float(np.quantile(err_mlp, 0.9)),
@@ -258,7 +464,8 @@ def main(argv=None):
     }
     print(
         f"{res['n_dof']} DoF arm, {args.iterations} Adam steps x {args.batch} "
-        f"targets: loss {res['loss_first']:.2e} -> {res['loss_last']:.2e} m^2; "
+        f"targets ({computed} computed here, {jax.process_count()} process(es)): "
+        f"loss {res['loss_first']:.2e} -> {res['loss_last']:.2e} m^2; "
         f"training {t_train:.1f} s (first step incl. compile {t_compile:.1f} s)"
     )
     print(
