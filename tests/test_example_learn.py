@@ -29,8 +29,9 @@ def test_policy_learns_to_reach_held_out_targets(tmp_path):
     equilibrium is the target).
     """
     ex = _load("learn_reach")
+    ck = ["--checkpoint", str(tmp_path / "run"), "--checkpoint-every", "25"]
     with jax.numpy_dtype_promotion("standard"):
-        res = ex.main([*QUICK, "--out", str(tmp_path)])
+        res = ex.main([*QUICK, "--out", str(tmp_path), *ck])
     assert res["loss_last"] < res["loss_first"] / 4, (
         res["loss_first"],
         res["loss_last"],
@@ -39,6 +40,12 @@ def test_policy_learns_to_reach_held_out_targets(tmp_path):
     assert mlp < 0.6 * pd and mlp < 0.08, (mlp, pd)
     assert res["pd_ff_error_median_m"] < 0.01, res["pd_ff_error_median_m"]
     assert np.all(np.isfinite(res["losses"]))
+    # --checkpoint: saved after step 25 and at the end (tests/test_learn_checkpoint.py
+    # checks resuming)
+    assert res["steps_computed"] == 40
+    with np.load(tmp_path / "run" / "state.npz") as saved:
+        assert int(saved["step"]) == 40
+        np.testing.assert_array_equal(saved["losses"], res["losses"])
     png = tmp_path / "learn_reach.png"
     assert png.stat().st_size > 10_000
     with pytest.raises(SystemExit, match="overwrite"):
