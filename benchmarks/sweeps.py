@@ -15,10 +15,17 @@ Compile times are reported apart; throughput is the median of ``--repeats`` warm
 runs. ``--sizes`` sweeps the batch size for the throughput-vs-size chart (on a GPU:
 ``--sizes 1 4 16 64 256 1024 4096 16384``).
 
+``--processes 1 2 [4]`` measures instead the statics sweep (``--n-statics`` cases)
+across that many local CPU processes joined by ``sorojax.initialize_processes``
+(``sweeps_processes.py``'s measurement: cases/s and the efficiency against one
+process; ``sweeps_processes{tag}.json``). More processes than cores oversubscribe the
+machine. Without it the script ends by printing the stored
+``results/sweeps_processes.json`` figures, if any, labelled as stored.
+
 Run::
 
     python benchmarks/sweeps.py [--devices 2] [--n-statics 1024] [--n-dynamics 256]
-        [--sizes ...] [--out benchmarks/results]
+        [--sizes ...] [--processes 1 2] [--out benchmarks/results]
 """
 
 import argparse
@@ -32,6 +39,13 @@ def _args(argv):
     ap.add_argument("--n-statics", type=int, default=1024)
     ap.add_argument("--n-dynamics", type=int, default=256)
     ap.add_argument("--sizes", type=int, nargs="*", default=None)
+    ap.add_argument(
+        "--processes",
+        type=int,
+        nargs="*",
+        default=None,
+        help="local processes (e.g. 1 2 4): the multi-process statics sweep",
+    )
     ap.add_argument(
         "--loop-cases", type=int, default=128, help="cases timed one by one"
     )
@@ -145,7 +159,50 @@ def tensions(n, seed=0):
     return 10.0 * jax.random.uniform(jax.random.key(seed), (n, 4))
 
 
+def processes_main():
+    """``--processes``: ``sweeps_processes.py``'s measurement, its figures and file."""
+    import pathlib
+
+    import sweeps_processes
+
+    cores = os.cpu_count() or 1
+    if max(ARGS.processes) > cores:
+        print(
+            f"note: {max(ARGS.processes)} processes on {cores} cores oversubscribe "
+            "the machine (processes share cores)",
+            flush=True,
+        )
+    rows = sweeps_processes.measure(ARGS.processes, ARGS.n_statics, ARGS.repeats)
+    sweeps_processes.report(rows)
+    sweeps_processes.write(
+        rows, pathlib.Path(ARGS.out) / f"sweeps_processes{ARGS.tag}.json"
+    )
+
+
+def stored_processes():
+    """Print the stored multi-process figures (``results/sweeps_processes.json``)."""
+    path = os.path.join(os.path.dirname(__file__), "results", "sweeps_processes.json")
+    if not os.path.exists(path):
+        return
+    with open(path) as f:
+        data = json.load(f)
+    env = data["environment"]
+    print(
+        f"across processes, stored in {os.path.relpath(path)} ({env['cpu_count']} "
+        f"cores, load average {env['load_average_at_start'][0]:.1f} at start):"
+    )
+    for r in data["rows"]:
+        print(
+            f"  statics n={r['cases']:5d}, {r['processes']} process(es): "
+            f"{r['cases_per_s']:8.1f} cases/s, efficiency "
+            f"{r.get('efficiency', float('nan')):.2f}"
+        )
+
+
 def main():
+    if ARGS.processes:
+        processes_main()
+        return
     env = environment()
     print(f"jax {jax.__version__} on {jax.devices()}", flush=True)
     rows = []
@@ -202,6 +259,7 @@ def main():
     if ARGS.sizes:
         _plot(rows, stem + ".png")
     print(f"wrote {stem}.csv/.json")
+    stored_processes()
 
 
 def _plot(rows, path):

@@ -9,6 +9,10 @@ the rate is the cases over the slowest process's median time. Efficiency: the ra
 over N times the one-process rate. Writes ``results/sweeps_processes.json``::
 
     .venv/bin/python benchmarks/sweeps_processes.py [--processes 1 2] [--cases 1024]
+
+``benchmarks/sweeps.py --processes 1 2`` runs the same measurement. More processes
+than cores oversubscribe the machine (4 processes on a 2-core CPU share 2 cores:
+the rate cannot exceed the 2-process one).
 """
 
 import argparse
@@ -99,6 +103,37 @@ def run(n_proc: int, n: int, repeats: int) -> dict:
     }
 
 
+def measure(processes, cases: int, repeats: int) -> list[dict]:
+    """One row per process count; ``efficiency`` where 1 process was measured."""
+    rows = [run(n, cases, repeats) for n in processes]
+    base = next((r for r in rows if r["processes"] == 1), None)
+    for r in rows:
+        if base is not None:
+            r["efficiency"] = r["cases_per_s"] / (r["processes"] * base["cases_per_s"])
+    return rows
+
+
+def report(rows: list[dict]) -> None:
+    for r in rows:
+        print(
+            f"{r['processes']} process(es): {r['cases_per_s']:.0f} cases/s "
+            f"(median {r['median_s'] * 1e3:.1f} ms for {r['cases']}, first call "
+            f"{r['first_call_s']:.1f} s, efficiency "
+            f"{r.get('efficiency', float('nan')):.2f})",
+            flush=True,
+        )
+
+
+def write(rows: list[dict], path: Path = OUT) -> None:
+    from _common import environment
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(
+        json.dumps({"environment": environment(), "rows": rows}, indent=2) + "\n"
+    )
+    print(f"wrote {path}")
+
+
 def main() -> None:
     if sys.argv[1:2] == ["--worker"]:
         pid, n_proc, port, n, repeats, out = sys.argv[2:8]
@@ -112,23 +147,9 @@ def main() -> None:
     import jax
 
     jax.config.update("jax_enable_x64", True)
-    from _common import environment
-
-    rows = [run(n, args.cases, args.repeats) for n in args.processes]
-    base = next((r for r in rows if r["processes"] == 1), None)
-    for r in rows:
-        if base is not None:
-            r["efficiency"] = r["cases_per_s"] / (r["processes"] * base["cases_per_s"])
-        print(
-            f"{r['processes']} process(es): {r['cases_per_s']:.0f} cases/s "
-            f"(median {r['median_s'] * 1e3:.1f} ms for {r['cases']}, first call "
-            f"{r['first_call_s']:.1f} s, efficiency {r.get('efficiency', float('nan')):.2f})"
-        )
-    OUT.parent.mkdir(exist_ok=True)
-    OUT.write_text(
-        json.dumps({"environment": environment(), "rows": rows}, indent=2) + "\n"
-    )
-    print(f"wrote {OUT}")
+    rows = measure(args.processes, args.cases, args.repeats)
+    report(rows)
+    write(rows)
 
 
 if __name__ == "__main__":
