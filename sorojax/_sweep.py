@@ -182,8 +182,10 @@ def process_sum(tree):
         )
     arrays = [np.asarray(x) for x in leaves]
     sums: list = [None] * len(arrays)
-    # one gather per dtype: the leaves of a dtype travel as one flat vector
-    for dtype in {a.dtype for a in arrays}:
+    # one gather per dtype: the leaves of a dtype travel as one flat vector; dtypes
+    # in the order of their first leaf, the same on every process (a set's order
+    # may differ between processes, and gathers of different sizes would meet)
+    for dtype in dict.fromkeys(a.dtype for a in arrays):
         which = [i for i, a in enumerate(arrays) if a.dtype == dtype]
         flat = np.concatenate([arrays[i].ravel() for i in which])
         total = np.sum(multihost_utils.process_allgather(flat), axis=0)

@@ -5,7 +5,8 @@ Usage: python _learn_worker.py PROCESS_ID N_PROCESSES PORT OUT.npz
 ``examples/learn_reach.py``'s data-parallel Adam step (``make_train_step``) on a
 fixed batch of 8 targets (the whole pool, in the order the step's key draws),
 episodes of 4 control periods; with 2 processes each differentiates 4 targets.
-Saves the loss of each step, the weights and Adam's state after each step.
+Saves the loss of each step, the weights and Adam's state after each step, and a
+``sorojax.process_sum`` of leaves of three dtypes.
 """
 
 import importlib.util
@@ -41,6 +42,16 @@ optimiser = optax.adam(3e-3)
 opt_state = optimiser.init(params)
 step = ex.make_train_step(env, s0, static, optimiser, pool, batch=8, periods=4)
 saved = {"processes": np.asarray(jax.process_count())}
+# process_sum of leaves of three dtypes (one gather each), process-dependent values
+mixed = sj.process_sum(
+    {
+        "i": (pid + 1) * jnp.arange(3, dtype=jnp.int32),
+        "f": jnp.full((2, 2), 0.5 * (pid + 1)),
+        "h": jnp.float32(pid + 1),
+    }
+)
+for name, leaf in mixed.items():
+    saved[f"mixed_{name}"] = np.asarray(leaf)
 with jax.numpy_dtype_promotion("standard"):  # optax's Adam relies on it
     for k, key in enumerate(jax.random.split(jax.random.key(7), 2)):
         params, opt_state, loss = step(params, opt_state, key)

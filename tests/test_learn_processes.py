@@ -27,7 +27,7 @@ def test_two_process_learning_step_equals_one_process(tmp_path):
     first moment is 0.1 g after one step, whereas Adam's update alone hides a
     wrong gradient scale) agree to 1e-10 in float64 (the two runs differ only in
     the order of the batch sums, ~1e-16 relative), and both processes hold the same
-    weights."""
+    weights. Also sorojax.process_sum on leaves of three dtypes."""
     port = str(_free_port())
     # one CPU device per process; the suite's other XLA flags (LLVM -O0: half the
     # compile) and its persistent compilation cache apply to the workers too
@@ -53,7 +53,18 @@ def test_two_process_learning_step_equals_one_process(tmp_path):
         assert proc.returncode == 0, log[-3000:]
     one, *two = (np.load(tmp_path / f"out{n}_{p}.npz") for n, p in runs)
     assert int(one["processes"]) == 1 and int(two[0]["processes"]) == 2
-    keys = [k for k in one.files if k != "processes"]
+    # process_sum: in one process its argument, over two the sum 1 x + 2 x, each
+    # leaf's dtype kept (exact: small integers and halves)
+    for out, factor in ((one, 1), *((o, 3) for o in two)):
+        np.testing.assert_array_equal(out["mixed_i"], factor * np.arange(3))
+        np.testing.assert_array_equal(out["mixed_f"], np.full((2, 2), 0.5 * factor))
+        assert float(out["mixed_h"]) == factor
+        assert [out[f"mixed_{k}"].dtype for k in "ifh"] == [
+            "int32",
+            "float64",
+            "float32",
+        ]
+    keys = [k for k in one.files if not k.startswith(("processes", "mixed"))]
     assert {"loss_0", "loss_1", "params_1_0", "opt_1_0"} <= set(keys)
     for out in two:
         assert sorted(out.files) == sorted(one.files)
