@@ -24,6 +24,7 @@ Two ways to evaluate the velocity-product force C qd:
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from .._jit import jit
@@ -40,7 +41,11 @@ def _weighted_inertia(data: LinkageData) -> Float[Array, "n_points 6 6"]:
 
 
 def _mass_from_J(data: LinkageData, J) -> Array:
-    MJ = jnp.einsum("pab,pbj->paj", _weighted_inertia(data), J)
+    # only the points that carry mass: contact samples and load points add zeros
+    idx = np.asarray(data.mass_points, dtype=int)
+    Mw = data.point_weight[idx, None, None] * data.point_M[idx]
+    J = J[idx]
+    MJ = jnp.einsum("pab,pbj->paj", Mw, J)
     M = jnp.einsum("pai,paj->ij", J, MJ)
     return lock_padding(0.5 * (M + M.T), data.locked)
 

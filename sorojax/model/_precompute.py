@@ -174,6 +174,9 @@ class LinkageData(eqx.Module):
         point_weight: (n_points,) quadrature weight [m] at soft rod points, 1 at rigid
             centres of mass, 0 elsewhere.
         point_M: (n_points, 6, 6) inertia density (rod points) or inertia (CM).
+        mass_points: indices of the points that carry mass (positive quadrature
+            weight or a rigid centre of mass), static: the mass matrix sums over
+            these only (contact samples and load points carry none).
         K: (n_dof, n_dof) generalised stiffness.
         D: (n_dof, n_dof) generalised damping.
         gravity: (3,) gravitational acceleration.
@@ -194,6 +197,7 @@ class LinkageData(eqx.Module):
     D: Float[Array, "n_dof n_dof"]
     gravity: Float[Array, "3"]
     locked: Float[Array, " n_dof"] | None = None
+    mass_points: tuple[int, ...] = eqx.field(static=True, default=())
 
 
 def lock_padding(A: Array, locked: Array | None) -> Array:
@@ -234,6 +238,7 @@ def _precompute(linkage: Linkage) -> LinkageData:
     weight = np.zeros(n_pts)
     w_dyn = [None] * n_pts  # traced weights (depend on lengths)
     M_pts: list = [None] * n_pts
+    carries = np.zeros(n_pts, dtype=bool)  # the point has a positive mass weight
     links = []
     padded: list = []  # (offset, locked) of padded divisions
     for i, (link, ll) in enumerate(zip(linkage.links, lay.links, strict=True)):
@@ -282,6 +287,7 @@ def _precompute(linkage: Linkage) -> LinkageData:
                     D = D.at[o : o + nd, o : o + nd].add(Dd)
                 for k in range(len(X1)):
                     w_dyn[dl.first_point + k] = wL[k]
+                    carries[dl.first_point + k] = bool(dl.w[k] > 0)
                     M_pts[dl.first_point + k] = Ms[k]
                 divs.append(
                     DivisionData(
@@ -300,6 +306,7 @@ def _precompute(linkage: Linkage) -> LinkageData:
         else:
             assert isinstance(link, RigidLink)
             weight[ll.cm_point] = 1.0
+            carries[ll.cm_point] = True
             M_pts[ll.cm_point] = link.spatial_inertia()
         links.append(
             LinkData(
@@ -334,6 +341,7 @@ def _precompute(linkage: Linkage) -> LinkageData:
         D=D,
         gravity=linkage.gravity,
         locked=locked,
+        mass_points=tuple(int(p) for p in np.flatnonzero(carries)),
     )
 
 
