@@ -75,6 +75,7 @@ _HEAVY_FIRST = (
     "test_statics.py",  # 61
     "test_dynamics.py",  # 56
     "test_example_learn.py",  # 55
+    "test_learn_processes.py",  # ~50 (three processes)
     "test_actuation.py",  # 54
     "test_rosenbrock.py",  # 53
     "test_jit.py",  # 50
