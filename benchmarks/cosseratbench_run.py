@@ -4,8 +4,7 @@ The third-party rod benchmark cosseratbench (0.3) runs each solver through its o
 adapter (sorojax's: ``sorojax/contrib/cosseratbench.py``, entry point in
 pyproject.toml) on cantilever, catenary, pendulum, twist and the contact
 experiments crossing, capstan and pile at their default parameters and
-resolutions (sorojax's pile raises ``NotImplementedError``, which the benchmark
-reports "unsupported"), and capstan's ``overhang``
+resolutions, and capstan's ``overhang``
 variants (``--vary-solvers``, default sorojax), one run at a time (``-j 1``): the
 benchmark times each run itself, after an untimed warm-up call of the same scene at 1e-3 of its duration
 (so JAX compilation is not in the wall time). Needs the ``bench`` extra

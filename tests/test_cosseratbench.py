@@ -18,6 +18,7 @@ from cosseratbench.experiments.cantilever import cantilever  # noqa: E402
 from cosseratbench.experiments.capstan import capstan  # noqa: E402
 from cosseratbench.experiments.crossing import crossing  # noqa: E402
 from cosseratbench.experiments.pendulum import pendulum  # noqa: E402
+from cosseratbench.experiments.pile import pile  # noqa: E402
 
 import sorojax.contrib.cosseratbench as adapter  # noqa: E402
 from sorojax.contrib.cosseratbench import SorojaxSolver  # noqa: E402
@@ -118,6 +119,10 @@ def test_contact_scenes_model_choices():
     there), settled by the damped dynamics, a rod-pair stiffness that sinks the
     ropes' weight by 2e-3 of the radius. Capstan: the free rope on a planar free joint, damped
     dynamics with friction against the cylinder (a capsule) on several divisions.
+    Pile: a 3D rope on a prismatic (lowered) start, Tsit5 (a W of every segment
+    pair would cost more than the explicit steps it saves) with the heap's softer
+    laws: self-contact sinks the rope's weight by 5e-2 of the radius, the floor four
+    layers of it by 5e-3, friction regularised at 1e-2 m/s.
     """
     solver = SorojaxSolver()
     s = solver.settings(crossing.scenario, n_elements=51, n_frames=3)
@@ -151,3 +156,23 @@ def test_contact_scenes_model_choices():
     assert len(cuts) == 9 and all(k in cuts for k in adapter._kinks(rod)), cuts
     # a straight rod has none
     assert adapter._kinks(crossing.scenario.rods[0]) == ()
+
+    s = solver.settings(pile.scenario, n_elements=100, n_frames=3)
+    m = s["model"]
+    assert m["method"] == "damped" and m["start_joint"] == "P", m
+    assert m["solver"] == "tsit5" and m["rtol"] == adapter.CONTACT_RTOL, m
+    assert {"bend_y", "bend_z", "torsion"} <= set(m["orders"]), m  # 3D
+    rod = pile.scenario.rods[0]
+    w_len = rod.material.density * rod.area * 9.81
+    c = s["contact"]
+    np.testing.assert_allclose(
+        w_len * rod.length / c["rod_rod_stiffness_N_per_m"],
+        adapter.HEAP_PENETRATION * rod.radius,
+        rtol=1e-9,
+    )
+    np.testing.assert_allclose(
+        adapter.PILE_LAYERS * w_len / c["plane_stiffness_N_per_m2"],
+        adapter.HEAP_FLOOR_PENETRATION * rod.radius,
+        rtol=1e-9,
+    )
+    assert c["stick_velocity_m_per_s"] == adapter.HEAP_STICK_VELOCITY
