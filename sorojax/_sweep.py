@@ -48,7 +48,10 @@ inputs' fingerprint (a SHA-256 of their leaves' bytes, shapes and dtypes), the b
 size and the number of cases; a run whose inputs or block size differ stops with an
 error instead of mixing or overwriting another sweep's results. Plain NumPy files
 rather than orbax: a block is a few arrays written once and read back once, on one
-host, and the files open without sorojax or JAX.
+host, and the files open without sorojax or JAX. In a run of several processes each
+process checkpoints its own share in ``FOLDER/process_P_of_N`` (``P`` its index,
+``N`` the number of processes); a rerun with the same number of processes resumes
+each share, and the gather follows.
 
 What it does not do: change the solvers. A vmapped ``solve_statics`` runs its
 Newton loop until the slowest case of its chunk converges (converged cases idle in
@@ -277,7 +280,8 @@ def sweep(
         devices: the devices to use (default ``jax.devices()``, or in a run of
             several processes each process's ``jax.local_devices()``).
         checkpoint: a folder: save each finished block of cases there, and load
-            the blocks a former run with the same inputs saved (module notes).
+            the blocks a former run with the same inputs saved (module notes; with
+            several processes, one subfolder per process).
         block: cases per saved block (default: 64 passes of every device, at
             most all the cases); only with ``checkpoint``.
         progress: called as ``progress(block, n_blocks, computed)`` after each
@@ -362,12 +366,6 @@ def _across_processes(fn, args, chunk, checkpoint, block, progress, gather):
     """``sweep`` in a run of several processes (module notes)."""
     from jax.experimental import multihost_utils
 
-    if checkpoint is not None:
-        raise ValueError(
-            "sweep: checkpoint with several processes is not supported; give each "
-            "process its own cases and folder (sweep(..., devices="
-            "jax.local_devices(), checkpoint=...)), or run one process."
-        )
     n = _batch_size(args)
     if n == 0:
         raise ValueError("sweep: no cases (the leading axis has length 0).")
@@ -378,10 +376,12 @@ def _across_processes(fn, args, chunk, checkpoint, block, progress, gather):
     # with copies of the last case (all copies for a process past the end)
     idx = np.minimum(np.arange(start, start + share), n - 1)
     mine = jax.tree.map(lambda x: jnp.asarray(x)[idx], args)
+    if checkpoint is not None:  # each process its own share's folder
+        checkpoint = as_path(checkpoint) / f"process_{p}_of_{n_proc}"
     # (block or progress without a checkpoint are refused there, as in one process)
     out = sweep(
-        fn, *mine, chunk=chunk, devices=jax.local_devices(), block=block,
-        progress=progress,
+        fn, *mine, chunk=chunk, devices=jax.local_devices(), checkpoint=checkpoint,
+        block=block, progress=progress,
     )  # fmt: skip
     if not gather:
         return jax.tree.map(lambda y: y[: stop - start], out), (start, stop)
