@@ -1519,10 +1519,8 @@ class SorojaxSolver:
         self, models, members, times, contact: bool = False, state: bool = False
     ):
         mdl = models[members[0]]
-        obstacles = bool(
-            mdl.linkage.contact is not None and mdl.linkage.contact.obstacles
-        )
         c = mdl.linkage.contact
+        obstacles = bool(c is not None and c.obstacles)
         heap = bool(contact and c is not None and c.self_contact)
         solver, rtol, atol = self._tolerances(
             contact and _implicit(mdl.plan, obstacles, heap), heap
