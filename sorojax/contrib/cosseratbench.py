@@ -7,8 +7,8 @@ this module is loaded only then, or by its test, so it imports cosseratbench at 
 top. What is not modelled (a displaced driven end, a turning driven start, a
 Poisson ratio above 0.5) raises ``NotImplementedError`` (reported
 "unsupported"). Every capability is declared; ``SorojaxSolver(contact=False)``
-declares none of contact's (the crossing's run takes about 12 minutes on a 2-core
-CPU, the capstan's one).
+declares none of contact's (the crossing's run takes about 5 minutes on a 2-core
+CPU, the capstan's one, the pile's 6).
 
 Model per rod (from the scenario's physics; :meth:`SorojaxSolver.settings` reports it):
 
@@ -59,7 +59,9 @@ sized from the scene's loads (:func:`_laws`: stiffness for :data:`PENETRATION`
 between rods and :data:`OBSTACLE_PENETRATION` against obstacles, critical damping,
 the larger friction coefficient, static and kinetic alike).
 Frictionless quasi-static scenes (crossing) settle by the damped dynamics of the
-statics' model (:data:`CONTACT_STATICS`). A heaping rope (self-contact: the pile)
+statics' model (:data:`CONTACT_STATICS`) for :data:`SETTLE_FRACTION` of the
+duration, then Newton's method finds the equilibrium from there, which later
+frames show. A heaping rope (self-contact: the pile)
 runs the damped dynamics with Tsit5 and softer laws (:data:`HEAP_PENETRATION`,
 :data:`HEAP_FLOOR_PENETRATION`, :data:`HEAP_STICK_VELOCITY`): every pair of its
 segments is checked at every step. Other frictional ones (capstan) run the damped
@@ -240,6 +242,19 @@ time of their initial gap (:meth:`SorojaxSolver._touch`)."""
 
 STATICS_MAX_STEPS = 256
 """Newton steps of a contact statics (its steps are shortened near contact)."""
+
+SETTLE_FRACTION = 0.5
+"""Frictionless quasi-static rod-pair scenes (crossing) settle by the damped
+dynamics for this fraction of the duration; Newton's method then finds the
+equilibrium from there, which every later frame shows (as in the statics path).
+The damped ropes approach it along a very soft mode (smallest eigenvalue of the
+crossing's tangent 3.5e-4 at 50 elements) and still creep at 0.7 mm/s at the end
+of the duration, while the shape and lift change by under 1e-5 of the length."""
+
+SETTLE_RESIDUAL = 1e-6
+"""Largest scaled residual accepted from that Newton solve, with no negative
+eigenvalue of its tangent: Newton stalls above 1e-10 there (1.6e-8 after 256 steps
+at 50 elements). Otherwise the dynamics goes on to the end."""
 
 
 # --------------------------------------------------------------------------- plan
@@ -790,6 +805,25 @@ def _is_contact_scene(scenario: Scenario) -> bool:
         scenario.obstacles
         or any(rod.start_motion is not None for rod in scenario.rods)
         or _pairs(scenario)
+    )
+
+
+def _settles(scenario: Scenario) -> bool:
+    """Whether a contact scene settles, then solves its statics.
+
+    Quasi-static, frictionless, constant loads, rod pairs and no obstacles: see
+    :data:`SETTLE_FRACTION`.
+    """
+    drive = any(
+        r.start_motion is not None or r.end_motion is not None for r in scenario.rods
+    )
+    return bool(
+        scenario.quasi_static
+        and _pairs(scenario)
+        and not scenario.obstacles
+        and not scenario.self_contact
+        and not drive
+        and not _frictional(scenario)
     )
 
 
@@ -1352,6 +1386,12 @@ class SorojaxSolver:
                     contact and _implicit(plan, bool(scenario.obstacles), heap), heap
                 )
                 entry.update(solver=solver, rtol=rtol, atol=atol, adaptive=True)
+            if contact and _settles(scenario):
+                entry["then"] = (
+                    f"solve_statics from the state at {SETTLE_FRACTION:g} of the "
+                    f"duration (scaled residual <= {SETTLE_RESIDUAL:g}, stable); "
+                    "later frames show it"
+                )
             if plan.method == "damped":
                 entry["damping"] = "mass-proportional"
                 entry["damping_rate"] = 2.0 * scenario.slowest_frequency()
@@ -1427,6 +1467,8 @@ class SorojaxSolver:
                 if out is None:  # unstable: the damped dynamics finds a stable one
                     plans = [dataclasses.replace(p, method="damped") for p in plans]
                     mdl = _build_scene(scenario, n_elements, plans)
+            if out is None and _settles(scenario):
+                out = self._settle(mdl, times)
             if out is None:
                 out = self._dynamics([mdl], [0], times, contact=True)[0]
         pos, d1 = out
@@ -1436,6 +1478,39 @@ class SorojaxSolver:
             tuple(
                 d1[:, k * n_elements : (k + 1) * n_elements] for k in range(len(rods))
             ),
+        )
+
+    def _settle(self, mdl: _Model, times):
+        """``(positions, d1)``: the damped dynamics, then the equilibrium from there.
+
+        The dynamics runs to :data:`SETTLE_FRACTION` of the duration; Newton's
+        method starts from its last state, and every later frame shows the
+        equilibrium it finds (:data:`SETTLE_RESIDUAL`). Without one the dynamics
+        goes on to the end.
+        """
+        k = int(np.searchsorted(times, SETTLE_FRACTION * times[-1]))
+        k = min(max(k, 1), len(times) - 1)
+        (pos, d1), y = self._dynamics([mdl], [0], times[: k + 1], True, state=True)
+        sol = sj.solve_statics(
+            mdl.linkage,
+            jnp.asarray(y[0, : mdl.linkage.n_dof]),
+            throw=False,
+            warn_unstable=False,
+            max_steps=STATICS_MAX_STEPS,
+            load_steps=1,
+        )
+        found = (
+            float(sol.residual_norm) <= SETTLE_RESIDUAL
+            and int(sol.n_negative) == 0
+            and bool(np.all(np.isfinite(sol.q)))
+        )
+        if not found:
+            return None
+        pe, de, _ = _sample(mdl.sampler, sol.q, mdl.nodes, mdl.mids)
+        later = len(times) - 1 - k
+        return (
+            np.concatenate([pos, np.repeat(np.asarray(pe)[None], later, 0)]),
+            np.concatenate([d1, np.repeat(np.asarray(de)[None], later, 0)]),
         )
 
     def _touch(self, scenario: Scenario, n_elements: int, plans, mdl: _Model):
