@@ -8,6 +8,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 WORKER = pathlib.Path(__file__).with_name("_sweep_worker.py")
 
@@ -68,6 +69,7 @@ def test_two_processes_sweep_the_cable_arm_as_one(tmp_path):
     np.testing.assert_allclose(mine, one["tips"], rtol=0, atol=1e-12)
 
 
+@pytest.mark.slow  # two more launches (~20 s of CPU); one process's resume is default
 def test_two_processes_checkpoint_and_resume(tmp_path):
     """A checkpointed sweep over two processes: each process saves its own share
     (4 + 3 cantilever cases, blocks of 2) in its own subfolder; rerun after each
