@@ -132,6 +132,18 @@ def _results(out: Path, experiments, solvers, variant: str = "default") -> dict:
     return found
 
 
+def _totals(found: dict, out: Path, prefix: str, totals: dict) -> None:
+    """Each result's total time incl. warm-up: this invocation's runs save theirs in
+    ``total_seconds.json`` beside the result, the others read it from there."""
+    for (e, s), summ in found.items():
+        path = out / e / "default" / s / "total_seconds.json"
+        if f"{prefix}{e}/default/{s}" in totals:
+            total = {"total_seconds_incl_warm_up": totals[f"{prefix}{e}/default/{s}"]}
+            path.write_text(json.dumps(total) + "\n")
+        if path.exists():
+            summ.update(json.loads(path.read_text()))
+
+
 def _variants(out: Path) -> dict:
     """Saved variant runs: ``{(experiment, key, solver): result}`` (not defaults)."""
     found: dict = {}
@@ -421,29 +433,14 @@ def main() -> None:
             if path.stat().st_size > KEEP_BYTES:
                 dropped.append(str(path.relative_to(args.out)))
                 path.unlink()
-    for (e, s), summ in found.items():  # runs of this invocation: their total time
-        if f"{e}/default/{s}" in totals:
-            summ["total_seconds_incl_warm_up"] = totals[f"{e}/default/{s}"]
-            path = args.out / e / "default" / s / "total_seconds.json"
-            path.write_text(
-                json.dumps({"total_seconds_incl_warm_up": totals[f"{e}/default/{s}"]})
-                + "\n"
-            )
-        elif (path := args.out / e / "default" / s / "total_seconds.json").exists():
-            summ.update(json.loads(path.read_text()))
+    _totals(found, args.out, "", totals)
     variants = _variants(args.out)
     text = table(found, args.experiments, SOLVERS)
     if variants:
         text += "\n\n" + variant_table(variants)
     mids = [e for e in MIDDLE if e in args.experiments]
     middle = _results(args.out / "middle", mids, SOLVERS)
-    for (e, s), summ in middle.items():
-        path = args.out / "middle" / e / "default" / s / "total_seconds.json"
-        if f"middle/{e}/default/{s}" in totals:
-            total = {"total_seconds_incl_warm_up": totals[f"middle/{e}/default/{s}"]}
-            path.write_text(json.dumps(total) + "\n")
-        if path.exists():
-            summ.update(json.loads(path.read_text()))
+    _totals(middle, args.out / "middle", "middle/", totals)
     if middle:
         n = ", ".join(f"{e} {MIDDLE[e]}" for e in mids)
         text += (

@@ -814,16 +814,20 @@ def _settles(scenario: Scenario) -> bool:
     Quasi-static, frictionless, constant loads, rod pairs and no obstacles: see
     :data:`SETTLE_FRACTION`.
     """
-    drive = any(
-        r.start_motion is not None or r.end_motion is not None for r in scenario.rods
-    )
     return bool(
         scenario.quasi_static
         and _pairs(scenario)
         and not scenario.obstacles
         and not scenario.self_contact
-        and not drive
+        and not _driven(scenario)
         and not _frictional(scenario)
+    )
+
+
+def _driven(scenario: Scenario) -> bool:
+    """Whether a rod's start or end follows a prescribed motion."""
+    return any(
+        r.start_motion is not None or r.end_motion is not None for r in scenario.rods
     )
 
 
@@ -901,7 +905,7 @@ def _divided(n_div: int, kinks: tuple[float, ...]) -> tuple[float, ...]:
 def _scene_plans(scenario: Scenario, n_elements: int) -> list[_Plan]:
     """The rods' plans in a contact scene (see the module text)."""
     rods = scenario.rods
-    drive = any(r.start_motion is not None or r.end_motion is not None for r in rods)
+    drive = _driven(scenario)
     if not scenario.quasi_static:
         method = "dynamics"
     elif drive or _frictional(scenario):
@@ -1219,18 +1223,12 @@ def _heap(scenario: Scenario) -> bool:
     return bool(scenario.self_contact and _is_contact_scene(scenario))
 
 
-def _implicit(plan: _Plan, obstacles: bool, heap: bool = False) -> bool:
-    """Whether a contact scene runs ROS34PW2.
+def _implicit(plan: _Plan, obstacles: bool) -> bool:
+    """Whether a contact scene runs ROS34PW2 (a heap never does: ``_tolerances``).
 
     Obstacles (their stiffness and sticking friction would bound an explicit step)
-    or a rod pair whose bending order reaches :data:`PAIR_IMPLICIT_ORDER` do. A
-    heap does not: its W would carry thousands of segment pairs (some 7,000 in
-    the pile, whose first 0.3 s took more than 12 minutes on ROS34PW2), so its
-    laws are softened instead (:data:`HEAP_PENETRATION`,
-    :data:`HEAP_STICK_VELOCITY`) for Tsit5's steps.
+    or a rod pair whose bending order reaches :data:`PAIR_IMPLICIT_ORDER` do.
     """
-    if heap:
-        return False
     return obstacles or max(plan.orders) >= PAIR_IMPLICIT_ORDER
 
 
@@ -1328,7 +1326,11 @@ class SorojaxSolver:
     def _tolerances(
         self, contact: bool = False, heap: bool = False
     ) -> tuple[str, float, float]:
-        if heap:  # Tsit5 at the contact tolerance: its stability bounds the steps
+        # a heap runs Tsit5 at the contact tolerance (its stability bounds the
+        # steps): its W would carry thousands of segment pairs (some 7,000 in the
+        # pile, whose first 0.3 s took more than 12 minutes on ROS34PW2), so its laws
+        # are softened instead (HEAP_PENETRATION, HEAP_STICK_VELOCITY)
+        if heap:
             rtol = CONTACT_RTOL * self.time_step_scale**SOLVER_ORDER
             return DYNAMIC_SOLVER, rtol, ATOL_FACTOR * rtol
         if contact:
@@ -1383,7 +1385,7 @@ class SorojaxSolver:
             else:
                 heap = contact and _heap(scenario)
                 solver, rtol, atol = self._tolerances(
-                    contact and _implicit(plan, bool(scenario.obstacles), heap), heap
+                    contact and _implicit(plan, bool(scenario.obstacles)), heap
                 )
                 entry.update(solver=solver, rtol=rtol, atol=atol, adaptive=True)
             if contact and _settles(scenario):
@@ -1598,7 +1600,7 @@ class SorojaxSolver:
         obstacles = bool(c is not None and c.obstacles)
         heap = bool(contact and c is not None and c.self_contact)
         solver, rtol, atol = self._tolerances(
-            contact and _implicit(mdl.plan, obstacles, heap), heap
+            contact and _implicit(mdl.plan, obstacles), heap
         )
         n = mdl.linkage.n_dof
         B = len(members)
