@@ -140,7 +140,7 @@ def closure_errors_and_wrenches(linkage: Linkage, g, mu):
     return jnp.concatenate(errors), W
 
 
-def constraint_terms_from_kinematics(linkage: Linkage, g, J, eta, etadot):
+def constraint_terms_from_kinematics(linkage: Linkage, g, J, eta, etadot, rows=None):
     """``(e, A, Adot qd)`` from the point poses, body Jacobians, twists and rates.
 
     For each loop, ``rel = g_B^-1 g_A`` moves with the body twist
@@ -151,7 +151,9 @@ def constraint_terms_from_kinematics(linkage: Linkage, g, J, eta, etadot):
     ``xidot = etadot_A - Ad(rel)^-1 etadot_B + ad(xi) Ad(rel)^-1 eta_B`` and
     ``Adot qd = D xidot + d^2/ds^2 e(rel exp(s xi))`` at s = 0 (exact with the
     second-order expansion of exp). Everything comes from the kinematic pass the
-    mass matrix needs; no derivative of the whole kinematics is taken.
+    mass matrix needs; no derivative of the whole kinematics is taken. ``rows``:
+    each point's row in ``J`` and ``etadot`` (default: a row per point), as in
+    :class:`~sorojax.kinematics._recursion.PointRates`.
     """
 
     def side(link, offset):
@@ -160,8 +162,9 @@ def constraint_terms_from_kinematics(linkage: Linkage, g, J, eta, etadot):
             zero6 = jnp.zeros(6, dtype=g.dtype)
             return jnp.zeros_like(J[0]), zero6, zero6
         i = linkage.tip_point(link)
+        r = i if rows is None else int(rows[i])
         T = Ad_inv(offset)
-        return T @ J[i], T @ eta[i], T @ etadot[i]
+        return T @ J[r], T @ eta[i], T @ etadot[r]
 
     terms = []
     for c in linkage.closed_loops:

@@ -676,12 +676,13 @@ def contact_state(
 
 def state_from_data(linkage: Linkage, data, q, qd, t) -> ContactState:
     """:func:`contact_state` from precomputed data (inside other programs)."""
-    from ..kinematics._recursion import kinematics_and_rates, poses
+    from ..kinematics._recursion import point_rates, poses
 
     if qd is None:
         g, eta = poses(data, q), None
     else:
-        g, _, eta, _ = kinematics_and_rates(data, q, qd)
+        pr = point_rates(data, q, qd)
+        g, eta = pr.g, pr.eta
     _, rows, labels = _contact(linkage, t, g, eta)
     if not rows:
         z = jnp.zeros((0,), q.dtype)

@@ -1,9 +1,12 @@
 """Equations of motion M(q) qdd = F(q, qd, t) + tau - C(q, qd) qd - D qd - K q.
 
-One pass forms the body Jacobians J, the twists J qd and their velocity-product rates
-Jdot qd (the recursion differentiated in time, no Jdot matrix), then M = sum w
-J^T M J and every point force (inertial, gravity, point wrenches, custom hook) is
-gathered as one body wrench per point and mapped by J^T. K and D are constant
+One pass forms the body Jacobians J at the kinematic chain's points, the twists J qd
+and their velocity-product rates Jdot qd (the recursion differentiated in time, no
+Jdot matrix), and the poses and twists of the leaves (contact samples, one Magnus
+step each from their chain point); then M = sum w J^T M J over the points that carry
+mass, and every point force (inertial, gravity, point wrenches, contact, custom hook)
+is gathered as one body wrench per point and mapped by J^T (a leaf's wrench first
+crosses its step to its chain point). K and D are constant
 (precomputed once per solve, outside the integrator's loop).
 """
 
@@ -19,9 +22,11 @@ from jaxtyping import Array, ArrayLike, Float
 from .._jit import jit
 from ..kinematics._api import Kinematics, _as_q
 from ..kinematics._recursion import (
+    PointRates,
+    chain_layout,
     jacobians_dot,
     kinematics_and_rates,
-    poses_and_jacobians,
+    point_rates,
     strains,
 )
 from ..model._checks import check_finite, is_concrete
@@ -32,8 +37,9 @@ from ._constraints import (
     constraint_terms_from_kinematics,
 )
 from ._contact import contact_wrenches
-from ._external import custom_wrenches, external_wrenches
-from ._mass import _gyroscopic, _mass_from_J, _weighted_inertia
+from ._external import custom_wrenches, gravity_wrenches, point_wrenches
+from ._mass import _gyroscopic, _mass_from_J
+from ._wrench_recursion import force_from_point_rates
 
 GeneralizedForce = Callable[[Array, Array, Array], ArrayLike]
 """``tau(t, q, qd) -> (n_dof,)`` generalised actuation force added to the right side."""
@@ -43,17 +49,16 @@ InputFunction = Callable[[Array], Array]
 """``u(t) -> (n_inputs,)`` actuation inputs as a function of time (pure JAX)."""
 
 
-def lazy_kinematics(data: LinkageData, q, qd, rates):
+def lazy_kinematics(data: LinkageData, q, qd):
     """A function returning the :class:`Kinematics` the hooks read, built once.
 
-    Poses, Jacobians and twists come from ``rates`` (:func:`kinematics_and_rates`);
-    the strains and the Jacobians' time derivatives are traced only if a hook asks.
+    Traced only if a hook asks (every point's Jacobian, strain and Jacobian rate).
     """
     cache: list = []
 
     def kin_fn():
         if not cache:
-            g, J, eta, _ = rates
+            g, J, eta, _ = kinematics_and_rates(data, q, qd)
             Jdot = jacobians_dot(data, q, qd)
             cache.append(Kinematics(g=g, J=J, xi=strains(data, q), eta=eta, Jdot=Jdot))
         return cache[0]
@@ -69,30 +74,39 @@ def mass_and_force(
     qd,
     generalized_force: GeneralizedForce | None = None,
     u=None,
-    rates=None,
+    rates: PointRates | None = None,
     kin_fn=None,
 ) -> tuple[Array, Array]:
     """``(M, f)`` with ``M qdd = f``: mass matrix and all other generalised forces.
 
     ``u`` are the actuation inputs at ``t`` (None: no actuator forces); prescribed
     joints add nothing here (their efforts are constraint multipliers). ``rates``:
-    ``kinematics_and_rates(data, q, qd)`` if the caller has it already, ``kin_fn``
-    its :func:`lazy_kinematics` (what the hooks read).
+    ``point_rates(data, q, qd)`` if the caller has it already, ``kin_fn`` its
+    :func:`lazy_kinematics` (what the hooks read).
+
+    The inertial forces and M sum over the points that carry mass; every other
+    wrench is gathered per point and mapped in one product with the chain points'
+    Jacobians (leaves' wrenches first carried to their chain points).
     """
     if rates is None:
-        rates = kinematics_and_rates(data, q, qd)
-    g, J, eta, etadot_v = rates
+        rates = point_rates(data, q, qd)
+    g, eta = rates.g, rates.eta
     if kin_fn is None:
-        kin_fn = lazy_kinematics(data, q, qd, rates)
-
-    W = external_wrenches(linkage, data, t, g) - _gyroscopic(
-        _weighted_inertia(data), eta, etadot_v
+        kin_fn = lazy_kinematics(data, q, qd)
+    lay = chain_layout(data)
+    idx = np.asarray(data.mass_points, dtype=int)
+    rows = lay.row[idx]  # the mass points' rows in the chain's arrays
+    J_m = rates.J[rows]
+    Mw = data.point_weight[idx, None, None] * data.point_M[idx]
+    W_m = gravity_wrenches(data, g[idx], idx) - _gyroscopic(
+        Mw, eta[idx], rates.etadot[rows]
     )
-    M = _mass_from_J(data, J)
+    M = _mass_from_J(data, rates.J, lay.row)
     if linkage.added_mass is not None:
-        Ma = data.point_weight[:, None, None] * linkage.added_mass
-        W = W - jnp.einsum("pab,pb->pa", Ma, etadot_v)
-        M = M + jnp.einsum("pai,pab,pbj->ij", J, Ma, J)
+        Ma = data.point_weight[idx, None, None] * linkage.added_mass[idx]
+        W_m = W_m - jnp.einsum("pab,pb->pa", Ma, rates.etadot[rows])
+        M = M + jnp.einsum("pai,pab,pbj->ij", J_m, Ma, J_m)
+    W = point_wrenches(linkage, t, g)  # gravity: with the inertial forces
     if linkage.contact is not None:
         W = W + contact_wrenches(linkage, t, g, eta)
     if linkage.custom_wrench is not None:
@@ -101,7 +115,8 @@ def mass_and_force(
         Qa, Wa = actuation_loads(linkage, data, t, q, qd, u, kin_fn, g)
         if Wa is not None:
             W = W + Wa
-    f = jnp.einsum("pai,pa->i", J, W) - data.K @ q - data.D @ qd
+    f = force_from_point_rates(data, rates, W) + jnp.einsum("pai,pa->i", J_m, W_m)
+    f = f - data.K @ q - data.D @ qd
     if u is not None:
         f = f + Qa
     if generalized_force is not None:
@@ -202,8 +217,8 @@ def constrained_dynamics(
     """The saddle-point solve with prescribed coordinates and closed loops.
 
     Returns the :class:`ConstrainedState`, and with ``return_rates`` also the
-    ``kinematics_and_rates`` it used (at the prescribed values), for a caller that
-    needs the Jacobians too.
+    coordinates it used (``q`` with the prescribed values), for a caller that needs
+    the kinematics there too.
 
     ``M qdd = f + G^T mu`` with constraint rows ``G qdd = b``: one-hot rows
     ``qdd_p = u''(t)`` for prescribed coordinates (their values and velocities are
@@ -222,13 +237,20 @@ def constrained_dynamics(
         q, qd = q.at[qi].set(qp), qd.at[qi].set(qdp)
         rows.append(jnp.eye(n, dtype=q.dtype)[qi])
         rhs.append(qddp)
-    rates = kinematics_and_rates(data, q, qd)
+    rates = point_rates(data, q, qd)
     if linkage.closed_loops:
-        e, A, bias = constraint_terms_from_kinematics(linkage, *rates)
+        e, A, bias = constraint_terms_from_kinematics(
+            linkage,
+            rates.g,
+            rates.J,
+            rates.eta,
+            rates.etadot,
+            rows=chain_layout(data).row,
+        )
         Tb = linkage.baumgarte_time
         rows.append(A)
         rhs.append(-bias - (2.0 / Tb) * (A @ qd) - e / Tb**2)
-    kin_fn = lazy_kinematics(data, q, qd, rates)
+    kin_fn = lazy_kinematics(data, q, qd)
     M, f = mass_and_force(linkage, data, t, q, qd, generalized_force, u, rates, kin_fn)
     if rows:
         G, b = jnp.concatenate(rows), jnp.concatenate(rhs)
@@ -247,7 +269,7 @@ def constrained_dynamics(
     st = ConstrainedState(
         qd=qd, qdd=qdd, u=u_eff, efforts=mu[: len(qi)], lam=mu[len(qi) :], M=M
     )
-    return (st, rates) if return_rates else st
+    return (st, q) if return_rates else st
 
 
 def consistent_velocities(
@@ -267,11 +289,18 @@ def consistent_velocities(
         rows.append(jnp.eye(q.shape[0], dtype=q.dtype)[qi])
         rhs.append(qdp)
     qd0 = jnp.zeros_like(qd)
-    g, J = poses_and_jacobians(data, q)  # at rest: zero twists and rates
-    zeros = jnp.zeros(J.shape[:2], J.dtype)
-    rates = (g, J, zeros, zeros)
+    rates = point_rates(data, q, qd0)  # at rest: zero twists and rates
     if linkage.closed_loops:  # A from the body Jacobians M needs anyway
-        rows.append(constraint_terms_from_kinematics(linkage, *rates)[1])
+        rows.append(
+            constraint_terms_from_kinematics(
+                linkage,
+                rates.g,
+                rates.J,
+                rates.eta,
+                rates.etadot,
+                rows=chain_layout(data).row,
+            )[1]
+        )
         rhs.append(jnp.zeros(linkage.n_constraints, q.dtype))
     G, b = jnp.concatenate(rows), jnp.concatenate(rhs)
     M = mass_and_force(linkage, data, t, q, qd0, rates=rates)[0]

@@ -19,12 +19,18 @@ from ._wrench_recursion import force_from_wrenches, poses_with_records
 
 
 def gravity_wrenches(
-    data: LinkageData, g: Float[Array, "n 4 4"]
+    data: LinkageData, g: Float[Array, "n 4 4"], idx=None
 ) -> Float[Array, "n 6"]:
-    """Weighted body-frame gravity wrenches ``w_p M_p (0, R_p^T a)``."""
+    """Weighted body-frame gravity wrenches ``w_p M_p (0, R_p^T a)``.
+
+    ``idx``: only at these points (``g`` then has their rows only).
+    """
     a_body = jnp.einsum("pji,j->pi", g[:, :3, :3], data.gravity)  # R^T a
     G_body = jnp.concatenate([jnp.zeros_like(a_body), a_body], axis=1)
-    return data.point_weight[:, None] * jnp.einsum("pab,pb->pa", data.point_M, G_body)
+    w, M = data.point_weight, data.point_M
+    if idx is not None:
+        w, M = w[idx], M[idx]
+    return w[:, None] * jnp.einsum("pab,pb->pa", M, G_body)
 
 
 def point_wrenches(

@@ -40,11 +40,15 @@ def _weighted_inertia(data: LinkageData) -> Float[Array, "n_points 6 6"]:
     return data.point_weight[:, None, None] * data.point_M
 
 
-def _mass_from_J(data: LinkageData, J) -> Array:
-    # only the points that carry mass: contact samples and load points add zeros
+def _mass_from_J(data: LinkageData, J, rows=None) -> Array:
+    """``sum w J^T M J`` over the points that carry mass.
+
+    Contact samples and load points add zeros. ``rows``: each point's row in ``J``
+    (default: J has a row per point).
+    """
     idx = np.asarray(data.mass_points, dtype=int)
     Mw = data.point_weight[idx, None, None] * data.point_M[idx]
-    J = J[idx]
+    J = J[idx if rows is None else rows[idx]]
     MJ = jnp.einsum("pab,pbj->paj", Mw, J)
     M = jnp.einsum("pai,paj->ij", J, MJ)
     return lock_padding(0.5 * (M + M.T), data.locked)

@@ -11,7 +11,9 @@ Along one link's chain (:mod:`sorojax.kinematics._recursion`) the sweep is a suf
 sum in the frame of the chain's start: with ``G_a`` the pose of point a relative to
 it, ``y_b = Ad(G_b)^T sum_{a > b} Ad(G_a)^-T W_a``; every link is evaluated in one
 batch and only the links' totals (each child's wrench at its start, which is its
-parent's tip frame) are carried along the tree.
+parent's tip frame) are carried along the tree. A leaf's wrench (a contact sample
+off the chain, :mod:`sorojax.model._layout`) first crosses its own step to its
+chain point (:func:`leaf_wrenches`).
 """
 
 import jax.numpy as jnp
@@ -22,10 +24,16 @@ from ..kinematics._recursion import (
     _Ad,
     chain_layout,
     chain_terms,
+    from_step_end,
+    leaf_poses,
+    leaf_steps,
+    leaf_sums,
     link_base_poses,
     point_poses,
     step_jacobians_transpose,
     steps,
+    tangent_transpose_apply,
+    with_leaves,
 )
 from ..model._precompute import LinkageData
 
@@ -41,7 +49,25 @@ def poses_with_records(data: LinkageData, q):
     k = steps(data, q)
     ct = chain_terms(data, k, lay)
     g = point_poses(ct, lay, link_base_poses(data, ct, lay))
-    return g, (k, ct, lay)
+    kl = leaf_steps(data, q)
+    return with_leaves(lay, g, leaf_poses(lay, g, kl)), (k, ct, lay, kl)
+
+
+def leaf_wrenches(data: LinkageData, lay, kl, W):
+    """Leaves' wrenches carried to their chain points, and their own steps' force.
+
+    With ``J_leaf = Ad(E)^-1 (J_a + T dOmega)`` (E the leaf's step from chain point
+    a), ``J_leaf^T W = J_a^T y + dOmega^T T^T y``, ``y = Ad(E)^-T W``. Returns the
+    chain points' wrenches ``(n_core, 6)`` (their own plus their leaves' ``y``) and
+    the generalised force of the leaves' steps ``(n_dof,)``.
+    """
+    Wc = W[lay.core]
+    if kl is None:
+        return Wc, jnp.zeros(data.n_dof, W.dtype)
+    y = from_step_end(kl.R, kl.p, W[np.asarray(data.leaf_points)])
+    z = tangent_transpose_apply(kl.T, y)
+    F = step_jacobians_transpose(data, kl, z, st=data.leaf_steps)
+    return Wc + leaf_sums(lay, y), F
 
 
 def force_from_wrenches(
@@ -55,7 +81,8 @@ def force_from_wrenches(
         W: body-frame wrenches (moment, force) at every significant point, already
             multiplied by their quadrature weights where distributed.
     """
-    k, ct, lay = records
+    k, ct, lay, kl = records
+    W, F_leaves = leaf_wrenches(data, lay, kl, W)
     n_links = len(data.links)
     rows = np.arange(n_links)
     pl, ps = lay.point_link, lay.point_slot
@@ -92,4 +119,14 @@ def force_from_wrenches(
     AdG = _Ad(ct.RG[sl, ss], ct.pG[sl, ss])
     y = jnp.einsum("sba,sb->sa", AdG, suffix)
     z = jnp.einsum("sba,sb->sa", k.T, y)
-    return step_jacobians_transpose(data, k, z)
+    return step_jacobians_transpose(data, k, z) + F_leaves
+
+
+def force_from_point_rates(data: LinkageData, pr, W: Float[Array, "n_points 6"]):
+    """``sum_p J_p^T W_p`` with :class:`~sorojax.kinematics._recursion.PointRates`.
+
+    The chain points' Jacobians map their wrenches and their leaves' (carried
+    across the leaves' steps by :func:`leaf_wrenches`).
+    """
+    Wc, F = leaf_wrenches(data, chain_layout(data), pr.leaves, W)
+    return jnp.einsum("pai,pa->i", pr.J, Wc) + F

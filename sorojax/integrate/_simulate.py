@@ -278,17 +278,16 @@ def _rates(linkage: Linkage, data, t, y, u_fn, u_const, generalized_force):
     q, qd = y[:n], y[n:]
     tangent = linkage.contact is not None and linkage.contact.tangent_in_w
     if not _needs_inputs(linkage):
-        rates = kinematics_and_rates(data, q, qd)
-        M, f = mass_and_force(linkage, data, t, q, qd, generalized_force, rates=rates)
+        M, f = mass_and_force(linkage, data, t, q, qd, generalized_force)
         ydot, st = jnp.concatenate([qd, spd_solve(M, f)]), None
     else:
-        st, rates = constrained_dynamics(
+        st, q = constrained_dynamics(
             linkage, data, t, q, qd, _input_function(u_fn, u_const), generalized_force,
             return_rates=True,
         )  # fmt: skip
         ydot, M = jnp.concatenate([st.qd, st.qdd]), st.M
     if tangent:  # the contacts' stiffness and damping join W (ROS34PW2)
-        g, J, eta, _ = rates
+        g, J, eta, _ = kinematics_and_rates(data, q, ydot[:n])
         Kc, Dc = contact_tangent(linkage, t, g, J, eta)
         return ydot, (M, data.K + Kc, data.D + Dc), st
     return ydot, (M, data.K, data.D), st

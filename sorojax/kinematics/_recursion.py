@@ -78,8 +78,11 @@ class Steps(NamedTuple):
     xi: Array | None = None
 
 
-def steps(data: LinkageData, q, qd=None) -> Steps:
+def steps(data: LinkageData, q, qd=None, st=None) -> Steps:
     """Twists and exp/tangent kernels of every step of the linkage in one batch.
+
+    ``st``: the steps to evaluate (default ``data.steps``, the chain's;
+    ``data.leaf_steps`` for the leaves').
 
     ``Omega = h/2 (xi_1 + xi_2) + c ad(xi_1) xi_2`` (``c = 0`` for joints) for all
     steps at once, then one vectorised :func:`exp_and_tangent` (with its forward-mode
@@ -87,7 +90,7 @@ def steps(data: LinkageData, q, qd=None) -> Steps:
     forward mode (``Od = dOmega[xid]``, ``Odd = d^2 Omega[xid, xid]``, as the
     4th-order ``Od`` and ``Odd`` are).
     """
-    st = data.steps
+    st = data.steps if st is None else st
     xi = jnp.einsum("szan,n->sza", st.Phi_z, q) + st.xi_ref_z
     if st.order == 6:
         return _steps6(st, xi, qd)
@@ -125,9 +128,12 @@ def _steps6(st, xi, qd) -> Steps:
     return Steps(R, p, T, None, None, Td, Od, Odd, xi)
 
 
-def step_jacobians(data: LinkageData, k: Steps, V) -> Array:
-    """``dOmega V`` of every step: ``(n_steps, 6, cols)`` (``V`` None: identity)."""
-    st = data.steps
+def step_jacobians(data: LinkageData, k: Steps, V, st=None) -> Array:
+    """``dOmega V`` of every step: ``(n_steps, 6, cols)`` (``V`` None: identity).
+
+    ``st``: the steps ``k`` were made from (default ``data.steps``).
+    """
+    st = data.steps if st is None else st
     P = st.Phi_z if V is None else jnp.einsum("szan,nk->szak", st.Phi_z, V)
     if st.order == 6:
         dO = magnus6_apply(k.xi, st.h, jnp.swapaxes(P, -1, -2))
@@ -138,7 +144,7 @@ def step_jacobians(data: LinkageData, k: Steps, V) -> Array:
     return 0.5 * h * (P1 + P2) + c * (ad1 @ P2 - ad2 @ P1)
 
 
-def step_jacobians_transpose(data: LinkageData, k: Steps, z) -> Array:
+def step_jacobians_transpose(data: LinkageData, k: Steps, z, st=None) -> Array:
     """``sum_s dOmega_s^T z_s`` for wrenches ``z`` ``(n_steps, 6)``: ``(n_dof,)``.
 
     With ``dOmega = h/2 (P1 + P2) + c (ad(xi_1) P2 - ad(xi_2) P1)`` this is
@@ -146,9 +152,9 @@ def step_jacobians_transpose(data: LinkageData, k: Steps, z) -> Array:
     product with the constant strain bases and no ``(n_steps, 6, n_dof)`` array (the
     contraction of that array, fused with its making, cost most of a residual under
     ``vmap`` on CPU). 6th-order steps likewise, with the nodes' covectors from
-    :func:`magnus6_apply_transpose`.
+    :func:`magnus6_apply_transpose`. ``st``: as in :func:`step_jacobians`.
     """
-    st = data.steps
+    st = data.steps if st is None else st
     if st.order == 6:
         Z = magnus6_apply_transpose(k.xi, st.h, z)
         return jnp.einsum("szan,sza->n", st.Phi_z, Z)
@@ -170,6 +176,13 @@ class ChainLayout(NamedTuple):
     ``point_link``, ``point_slot`` ``(n_points,)`` the chain and prefix index of every
     significant point; ``tip_slot`` ``(n_links,)``; ``step_link``, ``step_slot``
     ``(n_steps,)`` the chain and slot of every real step; ``m`` the longest chain.
+
+    Points are the chain's (``core``: their point indices, in order); leaves (see
+    :mod:`sorojax.model._layout`) hang from chain points: ``leaf_row`` is the row
+    (in ``core``) of each leaf's chain point, ``leaf_first``, ``leaf_stop``
+    ``(n_core,)`` the range of leaves hanging from each chain point, ``order``
+    ``(n_points,)`` the row of every point in ``concatenate([core rows, leaf
+    rows])`` and ``row`` ``(n_points,)`` each point's row in ``core`` (-1: a leaf).
     """
 
     idx_Rp: np.ndarray
@@ -180,6 +193,12 @@ class ChainLayout(NamedTuple):
     step_link: np.ndarray
     step_slot: np.ndarray
     m: int
+    core: np.ndarray
+    leaf_row: np.ndarray
+    leaf_first: np.ndarray
+    leaf_stop: np.ndarray
+    order: np.ndarray
+    row: np.ndarray
 
 
 def chain_layout(data: LinkageData) -> ChainLayout:
@@ -229,6 +248,18 @@ def chain_layout(data: LinkageData) -> ChainLayout:
         for a, src in enumerate(row):
             if src < n_steps:
                 step_link[src], step_slot[src] = i, a
+    n_points = data.point_weight.shape[0]
+    leaves = np.asarray(data.leaf_points, int)
+    is_leaf = np.zeros(n_points, bool)
+    is_leaf[leaves] = True
+    core = np.flatnonzero(~is_leaf)
+    row = np.full(n_points, -1)
+    row[core] = np.arange(len(core))
+    leaf_row = row[np.asarray(data.leaf_parents, int)]
+    order = np.empty(n_points, int)
+    order[core] = np.arange(len(core))
+    order[leaves] = len(core) + np.arange(len(leaves))
+    rows = np.arange(len(core))
     return ChainLayout(
         idx_Rp,
         idx_rate,
@@ -238,6 +269,12 @@ def chain_layout(data: LinkageData) -> ChainLayout:
         step_link,
         step_slot,
         m,
+        core,
+        leaf_row,
+        np.searchsorted(leaf_row, rows),
+        np.searchsorted(leaf_row, rows, side="right"),
+        order,
+        row,
     )
 
 
@@ -395,15 +432,67 @@ def poses(data: LinkageData, q: Float[Array, " n_dof"]) -> Float[Array, "n_point
     """World poses of all significant points (no Jacobians traced)."""
     lay = chain_layout(data)
     ct = chain_terms(data, steps(data, q), lay)
-    return point_poses(ct, lay, link_base_poses(data, ct, lay))
+    g = point_poses(ct, lay, link_base_poses(data, ct, lay))
+    return with_leaves(lay, g, leaf_poses(lay, g, leaf_steps(data, q)))
 
 
 def point_poses(ct: ChainTerms, lay: ChainLayout, bases) -> Array:
-    """World poses of all significant points from the links' base poses."""
+    """World poses of the chain's points from the links' base poses (``lay.core``)."""
     rel = _pose(
         ct.RG[lay.point_link, lay.point_slot], ct.pG[lay.point_link, lay.point_slot]
     )
     return bases[lay.point_link] @ rel
+
+
+def to_step_end(R, p, x):
+    """``Ad(E)^-1 x`` for twists ``x`` (angular first) and steps ``E = (R, p)``.
+
+    That is ``(R^T w, R^T (v + w x p))``, batched over the leading axis.
+    """
+    w, v = x[..., :3], x[..., 3:]
+    out = jnp.concatenate([w, v + jnp.cross(w, p)], axis=-1).reshape(-1, 2, 3)
+    return jnp.einsum("lba,lkb->lka", R, out).reshape(x.shape)
+
+
+def from_step_end(R, p, W):
+    """``Ad(E)^-T W`` for wrenches ``W`` (moment first) at steps' ends ``E = (R, p)``.
+
+    The same wrench at the step's start: ``(R m + p x R f, R f)``.
+    """
+    Rw = jnp.einsum("lab,lkb->lka", R, W.reshape(-1, 2, 3))
+    m, f = Rw[:, 0], Rw[:, 1]
+    return jnp.concatenate([m + jnp.cross(p, f), f], axis=-1)
+
+
+def leaf_steps(data: LinkageData, q, qd=None) -> Steps | None:
+    """The leaves' own steps (None without leaves): see :func:`steps`."""
+    if not data.leaf_points:
+        return None
+    return steps(data, q, qd, st=data.leaf_steps)
+
+
+def leaf_poses(lay: ChainLayout, g_core, kl: Steps | None) -> Array | None:
+    """World poses of the leaves: their chain point's pose times their step's."""
+    if kl is None:
+        return None
+    return g_core[lay.leaf_row] @ _pose(kl.R, kl.p)
+
+
+def with_leaves(lay: ChainLayout, core, leaves) -> Array:
+    """Rows of the chain's points and of the leaves, in point order."""
+    if leaves is None:
+        return core
+    return jnp.concatenate([core, leaves])[lay.order]
+
+
+def leaf_sums(lay: ChainLayout, y) -> Array:
+    """``(n_core, ...)``: the sum of the leaves' rows ``y`` at each one's chain point.
+
+    Leaves of one chain point are consecutive, so each sum is a difference of two
+    prefix sums (gathers only: a scatter-add is slow under ``vmap``).
+    """
+    c = jnp.concatenate([jnp.zeros_like(y[:1]), jnp.cumsum(y, axis=0)])
+    return c[lay.leaf_stop] - c[lay.leaf_first]
 
 
 def poses_and_jacobians(
@@ -442,13 +531,76 @@ def kinematics_and_rates(
     return g, J, eta, etadot
 
 
-def _tree_pass(data: LinkageData, q, V, qd):
+def _tangent_apply(T, x):
+    """``T x`` for tangent operators ``T`` and twists ``x``.
+
+    ``T`` is block lower triangular (:func:`~sorojax.kinematics._step.exp_and_tangent`).
+    """
+    a, b = x[..., :3], x[..., 3:]
+    Ts = T[..., :3, :3]
+    top = jnp.einsum("lab,lb->la", Ts, a)
+    bottom = jnp.einsum("lab,lb->la", T[..., 3:, :3], a) + jnp.einsum(
+        "lab,lb->la", Ts, b
+    )
+    return jnp.concatenate([top, bottom], axis=-1)
+
+
+def tangent_transpose_apply(T, y):
+    """``T^T y`` for tangent operators ``T`` and wrenches ``y``.
+
+    See :func:`_tangent_apply`.
+    """
+    m, f = y[..., :3], y[..., 3:]
+    Ts = T[..., :3, :3]
+    top = jnp.einsum("lba,lb->la", Ts, m) + jnp.einsum("lba,lb->la", T[..., 3:, :3], f)
+    return jnp.concatenate([top, jnp.einsum("lba,lb->la", Ts, f)], axis=-1)
+
+
+class PointRates(NamedTuple):
+    """The dynamics' kinematics: Jacobians and rates at the chain's points only.
+
+    ``g`` ``(n_points, 4, 4)`` and ``eta`` ``(n_points, 6)`` at every point; ``J``
+    ``(n_core, 6, n_dof)`` and ``etadot`` ``(n_core, 6)`` at the chain's points
+    (``chain_layout(data).core``: leaves carry no mass, and their wrenches reach the
+    coordinates through their chain points, :func:`~sorojax.dynamics.
+    _wrench_recursion.leaf_wrenches`); ``leaves``: the leaves' steps (None without
+    leaves).
+    """
+
+    g: Array
+    eta: Array
+    J: Array
+    etadot: Array
+    leaves: Steps | None
+
+
+def point_rates(data: LinkageData, q, qd) -> PointRates:
+    """:class:`PointRates` at ``(q, qd)``.
+
+    :func:`kinematics_and_rates` without the leaves' Jacobians and rates: a leaf
+    costs its step, its pose and its twist.
+    """
+    g, X, (_, _, lay) = _tree_pass(data, q, None, qd, core_only=True)
+    n = data.n_dof
+    J, eta, etadot = X[..., :n], X[..., n], X[..., n + 1]
+    kl = leaf_steps(data, q)
+    if kl is None:
+        return PointRates(g, eta, J, etadot, None)
+    Od = step_jacobians(data, kl, qd[:, None], st=data.leaf_steps)[..., 0]
+    eta_l = to_step_end(kl.R, kl.p, eta[lay.leaf_row] + _tangent_apply(kl.T, Od))
+    g_all = with_leaves(lay, g, leaf_poses(lay, g, kl))
+    return PointRates(g_all, with_leaves(lay, eta, eta_l), J, etadot, kl)
+
+
+def _tree_pass(data: LinkageData, q, V, qd, core_only: bool = False):
     """Poses, Jacobians (times ``V``) and, when ``qd`` is given, twists and rates.
 
     One batch for every step (:func:`steps`) and every link's chain
     (:func:`chain_terms`); the loop over the static tree only carries the tips
     (one pose product and one 6 x 6 product per link), and every point is then
-    composed with its link's base in one batch.
+    composed with its link's base in one batch; then every leaf from its chain
+    point, in one batch. ``core_only``: return the chain's points only, as
+    ``(g, [J | eta | etadot], records)``.
     """
     n_links = len(data.links)
     dtype = q.dtype
@@ -490,6 +642,23 @@ def _tree_pass(data: LinkageData, q, V, qd):
             axis=-1,
         )
     X = _compose(ct.Ginv[pl, ps], jnp.stack(base_X)[pl], rel, cols, rates)
+    if core_only:
+        return g_pts, X, (k, ct, lay)
+    kl = leaf_steps(data, q, qd)
+    if kl is not None:
+        # a leaf is one step from its chain point: the chain's formulas with a
+        # chain of one step (chain_terms) and the chain point's [J | eta | etadot]
+        Gi = _Ad_inv(kl.R, kl.p)
+        st = data.leaf_steps
+        rel = kl.T @ step_jacobians(data, kl, V, st=st)
+        if rates:
+            y = jnp.einsum("lab,lb->la", kl.T, kl.Od)
+            yd = jnp.einsum("lab,lb->la", kl.Td, kl.Od)
+            yd = yd + jnp.einsum("lab,lb->la", kl.T, kl.Odd)
+            rel = jnp.concatenate([rel, y[..., None], yd[..., None]], axis=-1)
+        Xl = _compose(Gi, X[lay.leaf_row], Gi @ rel, cols, rates)
+        g_pts = with_leaves(lay, g_pts, leaf_poses(lay, g_pts, kl))
+        X = with_leaves(lay, X, Xl)
     J = X[..., :cols]
     return g_pts, J, (X[..., cols], X[..., cols + 1]) if rates else None
 

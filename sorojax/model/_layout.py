@@ -5,7 +5,15 @@ sizes, Gauss counts, load positions), computed at trace time and cached.
 
 Significant points, link by link in order: the joint frame (after the joint), then for a
 rigid link its CM, for a soft link every point of every division (start, interior
-Gauss points, extra load points, end), then the link's tip reference point.
+Gauss points, extra load points, contact samples, end), then the link's tip reference
+point.
+
+A division's points are either on the kinematic chain (its ends, Gauss points and load
+points: the Magnus steps join consecutive ones) or *leaves* (contact samples that are
+none of those): a leaf's pose, twist and Jacobian come from one Magnus step of its own
+from the chain point before it (:mod:`sorojax.kinematics._recursion`), so that adding
+contact samples neither lengthens the chain nor changes the kinematics of the other
+points.
 """
 
 import dataclasses
@@ -34,6 +42,7 @@ class DivisionLayout:
     X1: np.ndarray  # (n_pts,) sorted, starts at 0, ends at 1
     w: np.ndarray  # (n_pts,) Gauss weights on [0, 1], 0 at extra points
     first_point: int  # index of X1[0] in the linkage's point table
+    leaf: np.ndarray  # (n_pts,) True at leaves (contact samples off the chain)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -61,6 +70,7 @@ class Layout:
         point_kind: (n_points,) JOINT, CM, ROD or TIP.
         point_division: (n_points,) 1-based division (0 if not a rod point).
         point_X1: (n_points,) normalised position in its division (0 off rods).
+        point_leaf: (n_points,) True at leaves (contact samples off the chain).
     """
 
     n_dof: int
@@ -69,6 +79,7 @@ class Layout:
     point_kind: np.ndarray
     point_division: np.ndarray
     point_X1: np.ndarray
+    point_leaf: np.ndarray
 
     @property
     def n_points(self) -> int:
@@ -77,31 +88,43 @@ class Layout:
 
 
 def division_points(
-    n_gauss: int, extra: tuple[float, ...]
-) -> tuple[np.ndarray, np.ndarray]:
-    """Union of 0, the Gauss points, the extra load points and 1, with weights."""
+    n_gauss: int, extra: tuple[float, ...], leaves: tuple[float, ...] = ()
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Union of 0, the Gauss points, the extra load points, the leaves and 1.
+
+    Returns the sorted positions, their weights (Gauss weights, 0 elsewhere) and
+    whether each is a leaf: a point given only in ``leaves`` (a point that is also a
+    chain point, an end, a Gauss or a load point, stays on the chain).
+    """
     xg, wg = gauss_legendre01(n_gauss)
-    X = np.concatenate([[0.0], xg, [1.0], np.asarray(extra, dtype=float)])
-    W = np.concatenate([[0.0], wg, [0.0], np.zeros(len(extra))])
+    leaves = np.asarray(leaves, dtype=float)
+    X = np.concatenate([[0.0], xg, [1.0], np.asarray(extra, dtype=float), leaves])
+    W = np.concatenate([[0.0], wg, [0.0], np.zeros(len(extra) + len(leaves))])
+    F = np.concatenate(
+        [np.zeros(len(X) - len(leaves), bool), np.ones_like(leaves, bool)]
+    )
     order = np.argsort(X, kind="stable")
-    X, W = X[order], W[order]
+    X, W, F = X[order], W[order], F[order]
     keep = np.concatenate([[True], np.diff(X) > 1e-12])
-    # When an extra point coincides with a Gauss point keep the Gauss weight.
-    Xk, Wk = [], []
-    for x, w, k in zip(X, W, keep, strict=True):
+    # When an extra point coincides with a Gauss point keep the Gauss weight; a
+    # leaf that coincides with a chain point is that chain point.
+    Xk, Wk, Fk = [], [], []
+    for x, w, f, k in zip(X, W, F, keep, strict=True):
         if k:
             Xk.append(x)
             Wk.append(w)
+            Fk.append(f)
         else:
             Wk[-1] = max(Wk[-1], w)
-    return np.asarray(Xk), np.asarray(Wk)
+            Fk[-1] = Fk[-1] and f
+    return np.asarray(Xk), np.asarray(Wk), np.asarray(Fk, bool)
 
 
 def build_layout(signature) -> Layout:
     """Build the layout from a hashable static signature (see ``Linkage.signature``).
 
     ``signature`` is a tuple over links of ``(soft, parent, joint_n_dof, divisions)``
-    where ``divisions`` is a tuple of ``(n_dof, n_gauss, extra_X1s)``.
+    where ``divisions`` is a tuple of ``(n_dof, n_gauss, extra_X1s, leaf_X1s)``.
     """
     return _build_layout(signature)
 
@@ -110,13 +133,14 @@ def build_layout(signature) -> Layout:
 def _build_layout(signature) -> Layout:
     offset = 0
     links = []
-    p_link, p_kind, p_div, p_X1 = [], [], [], []
+    p_link, p_kind, p_div, p_X1, p_leaf = [], [], [], [], []
 
-    def add(link, kind, div=0, X1=0.0):
+    def add(link, kind, div=0, X1=0.0, leaf=False):
         p_link.append(link)
         p_kind.append(kind)
         p_div.append(div)
         p_X1.append(X1)
+        p_leaf.append(leaf)
         return len(p_kind) - 1
 
     for i, (soft, parent, jn, divs) in enumerate(signature, start=1):
@@ -126,12 +150,12 @@ def _build_layout(signature) -> Layout:
         cm_point = None
         dls = []
         if soft:
-            for d, (nd, ng, extra) in enumerate(divs, start=1):
-                X1, w = division_points(ng, extra)
+            for d, (nd, ng, extra, leaves) in enumerate(divs, start=1):
+                X1, w, leaf = division_points(ng, extra, leaves)
                 first = len(p_kind)
-                for x in X1:
-                    add(i, ROD, d, float(x))
-                dls.append(DivisionLayout(offset, nd, X1, w, first))
+                for x, f in zip(X1, leaf, strict=True):
+                    add(i, ROD, d, float(x), bool(f))
+                dls.append(DivisionLayout(offset, nd, X1, w, first, leaf))
                 offset += nd
         else:
             cm_point = add(i, CM)
@@ -155,4 +179,5 @@ def _build_layout(signature) -> Layout:
         np.asarray(p_kind, dtype=int),
         np.asarray(p_div, dtype=int),
         np.asarray(p_X1, dtype=float),
+        np.asarray(p_leaf, dtype=bool),
     )

@@ -86,8 +86,10 @@ class Linkage(eqx.Module):
             reaches it.
         contact: optional :class:`~sorojax.Contact`: obstacles, the contact law,
             rigid links' contact shapes, rod-rod pairs and self-contact. Its
-            samples on soft links become significant points of the layout (exact
-            kinematics); their number is fixed here (see ``Contact.spacing``).
+            samples on soft links become significant points of the layout, as
+            leaves of the kinematic chain (each one Magnus step from the chain
+            point before it); their number is fixed here (see
+            ``Contact.spacing``).
     """
 
     links: tuple[AbstractLink, ...]
@@ -221,18 +223,24 @@ class Linkage(eqx.Module):
                 for r in a.route:
                     if isinstance(r, CableAnchor) and r.division is not None:
                         extra.setdefault((r.link, r.division), []).append(r.X1)
+        leaves: dict[tuple[int, int], list[float]] = {}
         contact = getattr(self, "contact", None)
         if contact is not None:
             for link, cells in contact.cells:
                 for k, n in enumerate(cells, start=1):
-                    extra.setdefault((link, k), []).extend(j / n for j in range(1, n))
+                    leaves.setdefault((link, k), []).extend(j / n for j in range(1, n))
         sig = []
         for i, (link, parent) in enumerate(
             zip(self.links, self.parents, strict=True), 1
         ):
             if isinstance(link, SoftLink):
                 divs = tuple(
-                    (d.n_dof, d.n_gauss, tuple(sorted(extra.get((i, k), []))))
+                    (
+                        d.n_dof,
+                        d.n_gauss,
+                        tuple(sorted(extra.get((i, k), []))),
+                        tuple(sorted(leaves.get((i, k), []))),
+                    )
                     for k, d in enumerate(link.divisions, start=1)
                 )
                 sig.append((True, parent, link.joint.n_dof, divs))

@@ -68,6 +68,9 @@ class DivisionData(eqx.Module):
         Upsilon: (n_pts, 6, 6) damping at the points.
         locked: (n,) 1 at padded coordinates of a :class:`~sorojax.model.PaddedBasis`
             (their basis columns are zero), 0 elsewhere; None without padding.
+        leaf_h, leaf_Phi_z, leaf_xi_ref_z: the leaves' own steps (from the chain
+            point before each leaf to the leaf), as ``h``, ``Phi_z`` and
+            ``xi_ref_z`` are the chain's; ``n_leaves`` rows (0 without leaves).
     """
 
     offset: int = eqx.field(static=True)
@@ -80,6 +83,9 @@ class DivisionData(eqx.Module):
     Sigma: Float[Array, "n_pts 6 6"]
     Upsilon: Float[Array, "n_pts 6 6"]
     locked: Float[Array, " n"] | None = None
+    leaf_h: Float[Array, " n_leaves"] | None = None
+    leaf_Phi_z: Float[Array, "n_leaves n_nodes 6 n"] | None = None
+    leaf_xi_ref_z: Float[Array, "n_leaves n_nodes 6"] | None = None
 
 
 class LinkData(eqx.Module):
@@ -129,25 +135,30 @@ class StepData(eqx.Module):
     xi_ref_z: Float[Array, "n_steps n_nodes 6"]
 
 
-def _step_data(links: list, n: int, order: int) -> StepData:
+def _step_data(links: list, n: int, order: int, leaves: bool = False) -> StepData:
+    """The chain's steps (joints and divisions), or with ``leaves`` the leaves'."""
     nz = len(_NODES[order])
     h, c, Phi_z, xr = [], [], [], []
     for ld in links:
         jo, jn = ld.joint_offset, ld.joint_Phi.shape[1]
-        if jn:
+        if jn and not leaves:
             P = jnp.zeros((6, n)).at[:, jo : jo + jn].set(ld.joint_Phi)
             h.append(jnp.ones(1))
             c.append(jnp.zeros(1))
             Phi_z.append(jnp.stack([P] * nz)[None])
             xr.append(jnp.zeros((1, nz, 6)))
         for dd in ld.divisions if ld.soft else ():
-            m, o = dd.h.shape[0], dd.offset
-            h.append(dd.h)
-            c.append(_C * dd.h * dd.h)
-            Phi_z.append(
-                jnp.zeros((m, nz, 6, n)).at[..., o : o + dd.n_dof].set(dd.Phi_z)
-            )
-            xr.append(dd.xi_ref_z)
+            if leaves:
+                dh, dP, dx = dd.leaf_h, dd.leaf_Phi_z, dd.leaf_xi_ref_z
+            else:
+                dh, dP, dx = dd.h, dd.Phi_z, dd.xi_ref_z
+            m, o = dh.shape[0], dd.offset
+            if not m:
+                continue
+            h.append(dh)
+            c.append(_C * dh * dh)
+            Phi_z.append(jnp.zeros((m, nz, 6, n)).at[..., o : o + dd.n_dof].set(dP))
+            xr.append(dx)
     if not h:
         return StepData(
             order=order,
@@ -180,7 +191,11 @@ class LinkageData(eqx.Module):
         K: (n_dof, n_dof) generalised stiffness.
         D: (n_dof, n_dof) generalised damping.
         gravity: (3,) gravitational acceleration.
-        steps: every Magnus step (joints and divisions) in one batch.
+        steps: every Magnus step of the chain (joints and divisions) in one batch.
+        leaf_steps: the leaves' own steps (see :mod:`sorojax.model._layout`), in
+            the order of ``leaf_points``.
+        leaf_points: point index of every leaf, static.
+        leaf_parents: point index of the chain point each leaf hangs from, static.
         locked: (n_dof,) 1 at the padding coordinates of size-class models
             (:func:`~sorojax.size_class`), 0 elsewhere; None (static) when no
             division is padded. ``K`` holds them at zero with the mean diagonal
@@ -198,6 +213,9 @@ class LinkageData(eqx.Module):
     gravity: Float[Array, "3"]
     locked: Float[Array, " n_dof"] | None = None
     mass_points: tuple[int, ...] = eqx.field(static=True, default=())
+    leaf_steps: StepData | None = None
+    leaf_points: tuple[int, ...] = eqx.field(static=True, default=())
+    leaf_parents: tuple[int, ...] = eqx.field(static=True, default=())
 
 
 def lock_padding(A: Array, locked: Array | None) -> Array:
@@ -240,6 +258,8 @@ def _precompute(linkage: Linkage) -> LinkageData:
     M_pts: list = [None] * n_pts
     carries = np.zeros(n_pts, dtype=bool)  # the point has a positive mass weight
     links = []
+    leaf_points: list[int] = []
+    leaf_parents: list[int] = []
     padded: list = []  # (offset, locked) of padded divisions
     for i, (link, ll) in enumerate(zip(linkage.links, lay.links, strict=True)):
         j = link.joint
@@ -261,15 +281,27 @@ def _precompute(linkage: Linkage) -> LinkageData:
                 else:
                     S = _scale_rows(L)[None, :, None]
                 X1 = dl.X1
-                Xz = np.stack([X1[:-1] + (X1[1:] - X1[:-1]) * z for z in nodes], 1)
-                n_steps = len(X1) - 1
+                chain = np.flatnonzero(~dl.leaf)  # the chain's points
+                Xc = X1[chain]
+                # each leaf's step starts at the chain point before it
+                leaf = np.flatnonzero(dl.leaf)
+                start = Xc[np.searchsorted(chain, leaf) - 1]
+                for k, parent in zip(
+                    leaf, chain[np.searchsorted(chain, leaf) - 1], strict=True
+                ):
+                    leaf_points.append(dl.first_point + int(k))
+                    leaf_parents.append(dl.first_point + int(parent))
+                a = np.concatenate([Xc[:-1], start])
+                b = np.concatenate([Xc[1:], X1[leaf]])
+                Xz = np.stack([a + (b - a) * z for z in nodes], 1)
+                n_steps = len(Xc) - 1
                 Xall = jnp.asarray(np.concatenate([X1, Xz.reshape(-1)]))
                 Phi_all = S * jax.vmap(div.basis)(Xall)
                 xr_all = jax.vmap(div.reference_strain)(Xall)
                 Phi, Phi_z = Phi_all[: len(X1)], Phi_all[len(X1) :]
-                Phi_z = Phi_z.reshape(n_steps, nz, 6, dl.n_dof)
+                Phi_z = Phi_z.reshape(len(a), nz, 6, dl.n_dof)
                 xr = xr_all[: len(X1)]
-                xr_z = xr_all[len(X1) :].reshape(n_steps, nz, 6)
+                xr_z = xr_all[len(X1) :].reshape(len(a), nz, 6)
                 Sigma, Ms, Ups = jax.vmap(
                     lambda x, sec=div.section, m=mat, G=G: section_matrices(
                         sec, x, m.E, G, m.rho, m.eta, m.poisson
@@ -293,14 +325,17 @@ def _precompute(linkage: Linkage) -> LinkageData:
                     DivisionData(
                         offset=dl.offset,
                         n_dof=dl.n_dof,
-                        h=jnp.asarray(np.diff(X1)) * L,
-                        Phi_z=Phi_z,
-                        xi_ref_z=xr_z,
+                        h=jnp.asarray(np.diff(Xc)) * L,
+                        Phi_z=Phi_z[:n_steps],
+                        xi_ref_z=xr_z[:n_steps],
                         Phi=Phi,
                         xi_ref=xr,
                         Sigma=Sigma,
                         Upsilon=Ups,
                         locked=locked,
+                        leaf_h=jnp.asarray(X1[leaf] - start) * L,
+                        leaf_Phi_z=Phi_z[n_steps:],
+                        leaf_xi_ref_z=xr_z[n_steps:],
                     )
                 )
         else:
@@ -342,6 +377,9 @@ def _precompute(linkage: Linkage) -> LinkageData:
         gravity=linkage.gravity,
         locked=locked,
         mass_points=tuple(int(p) for p in np.flatnonzero(carries)),
+        leaf_steps=_step_data(links, n, order, leaves=True) if leaf_points else None,
+        leaf_points=tuple(leaf_points),
+        leaf_parents=tuple(leaf_parents),
     )
 
 
