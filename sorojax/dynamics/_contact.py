@@ -704,7 +704,11 @@ def trajectory_contacts(linkage: Linkage, t, q, qd, result):
     Also ``result``, turned into ``RESULTS.contact_too_deep`` where a successful
     run went deeper than the smallest contact radius.
     """
-    data = precompute(linkage)
+    return contact_report(linkage, precompute(linkage), t, q, qd, result)
+
+
+def contact_report(linkage: Linkage, data, t, q, qd, result):
+    """:func:`trajectory_contacts` from precomputed data (inside other programs)."""
     states = jax.vmap(lambda t_, q_, qd_: state_from_data(linkage, data, q_, qd_, t_))(
         t, q, qd
     )

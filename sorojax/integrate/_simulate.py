@@ -33,7 +33,7 @@ from jaxtyping import Array, ArrayLike
 from .._jit import _bound_arguments, _top_level, in_tiers, jit
 from .._recompile import note_function, note_hooks
 from .._results import RESULTS, throw_on_failure
-from ..dynamics._contact import contact_tangent, trajectory_contacts
+from ..dynamics._contact import contact_report, contact_tangent
 from ..dynamics._eom import (
     GeneralizedForce,
     InputFunction,
@@ -440,12 +440,17 @@ def _simulate(
             linkage, data, sol.ts, sol.ys, u_fn, u_const, generalized_force
         )
         extra = {"u": u, "efforts": efforts, "lam": lam}
+    result = _result_code(sol)
+    if linkage.contact is not None:  # the contact report, in the same program
+        extra["contact"], result = contact_report(
+            linkage, data, sol.ts, sol.ys[:, :n], sol.ys[:, n:], result
+        )
     return Trajectory(
         solver=type(solver).__name__,
         t=sol.ts,
         q=sol.ys[:, :n],
         qd=sol.ys[:, n:],
-        result=_result_code(sol),
+        result=result,
         num_steps=sol.stats["num_steps"],
         num_accepted_steps=sol.stats["num_accepted_steps"],
         num_rejected_steps=sol.stats["num_rejected_steps"],
@@ -582,12 +587,6 @@ def simulate(
         ahead = [
             _saved_inputs.compile_ahead(*plan.inputs_args) if plan.separate else None
         ]
-        if linkage.contact is not None:  # the contact report's program likewise
-            ahead.append(
-                trajectory_contacts.compile_ahead(
-                    linkage, *plan.inputs_args[1:4], RESULTS.successful
-                )
-            )
         ahead = [f for f in ahead if f is not None]
         try:
             traj = _simulate(*plan.args)
@@ -601,16 +600,6 @@ def simulate(
                 lambda tr: (tr.u, tr.efforts, tr.lam),
                 traj,
                 inputs,
-                is_leaf=lambda x: x is None,
-            )
-        if linkage.contact is not None:
-            states, result = trajectory_contacts(
-                linkage, traj.t, traj.q, traj.qd, traj.result
-            )
-            traj = eqx.tree_at(
-                lambda tr: (tr.contact, tr.result),
-                traj,
-                (states, result),
                 is_leaf=lambda x: x is None,
             )
     if not throw:
@@ -791,10 +780,6 @@ def prepare_simulate(*args, **kwargs) -> concurrent.futures.Future | None:
         future = _simulate.prepare(*plan.args)
     if plan.separate:
         _saved_inputs.prepare(*plan.inputs_args)
-    if plan.args[0].contact is not None:
-        trajectory_contacts.prepare(
-            plan.args[0], *plan.inputs_args[1:4], RESULTS.successful
-        )
     return future
 
 

@@ -1,0 +1,212 @@
+"""Where one dynamics evaluation spends its time, part by part, and its floor.
+
+One evaluation is what every solver stage calls: the kinematics, the mass matrix,
+the contact forces, the mapping of all wrenches to generalised forces and the
+linear solve. Each part, and the whole evaluation, is compiled inside a
+``lax.fori_loop`` of N calls (the loop's input depends on the previous result, so
+nothing is hoisted out and there is no dispatch between calls); the model's
+precomputed arrays are an argument of the program, as inside ``simulate``. The
+public ``forward_dynamics`` is also timed the same way (it computes the model's
+constant arrays inside the call).
+
+Scenes:
+
+* ``clamped rod``: ``sorojax.scenes.free_fall_rod()``: torsion and both bendings,
+  cubic (12 DoF, 14 points), no contact;
+* ``rod on floor``: ``benchmarks/contact.py``'s 0.3 m rod on a planar joint (9 DoF),
+  without contact and with 10, 100 and 1000 floor samples;
+* ``grasp``: ``examples/grasp.py``'s gripper (13 DoF: a prescribed palm, two cable-
+  driven fingers, a free ball; contact with the floor and between the fingers and the
+  ball), at rest with the fingers closed by 0.2 N of tension.
+
+Parts (each a function of the previous part's outputs): ``kinematics`` (poses and
+twists of every point, Jacobians and twist rates at the chain's points, the leaves'
+steps), ``mass`` (M from the Jacobians), ``contact`` (geometry, law and body
+wrenches), ``mapping`` (every point wrench to generalised forces, through the
+leaves' steps), ``solve`` (the Cholesky solve or, with prescribed joints, the
+saddle-point solve). ``flops`` are XLA's count for one call of a part
+(``cost_analysis``).
+
+The floor beside each evaluation: its flops at the rate this machine sustains on
+fused float64 elementwise arithmetic (measured here: a degree-20 polynomial on 1e6
+numbers), i.e. the time if the evaluation were flop-bound and perfectly fused.
+
+Run::
+
+    .venv/bin/python benchmarks/evaluation.py [--quick]
+
+Writes ``benchmarks/results/evaluation.json``.
+"""
+
+import argparse
+import json
+import statistics
+import sys
+import time
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+jax.config.update("jax_enable_compilation_cache", False)
+
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+from _common import ROOT, environment  # noqa: E402
+
+import sorojax as sj  # noqa: E402
+from sorojax.dynamics._contact import contact_wrenches  # noqa: E402
+from sorojax.dynamics._eom import (  # noqa: E402
+    constrained_dynamics,
+    mass_and_force,
+    spd_solve,
+)
+from sorojax.dynamics._mass import _mass_from_J  # noqa: E402
+from sorojax.dynamics._wrench_recursion import force_from_point_rates  # noqa: E402
+from sorojax.kinematics._recursion import chain_layout, point_rates  # noqa: E402
+from sorojax.model._precompute import precompute  # noqa: E402
+
+sys.path.insert(0, str(ROOT / "benchmarks"))
+sys.path.insert(0, str(ROOT / "examples"))
+from contact import resting_rod  # noqa: E402
+
+
+def _nudge(x, acc):
+    """``x`` made to depend on the loop's carry (by a zero amount): no hoisting."""
+    return jax.tree.map(lambda a: a + 0.0 * acc.astype(a.dtype), x)
+
+
+def per_call(fn, args, n, repeats):
+    """Median time [s] of one ``fn(*args)`` inside a compiled loop of ``n`` calls,
+    the compile time of that loop [s] and XLA's flop count of one call."""
+
+    def run(args):
+        def body(i, acc):
+            out = fn(*_nudge(args, acc))
+            leaves = jax.tree.leaves(out)
+            return 1e-30 * sum(jnp.sum(x).astype(acc.dtype) for x in leaves)
+
+        return jax.lax.fori_loop(0, n, body, jnp.zeros(()))
+
+    t0 = time.perf_counter()
+    c = jax.jit(run).lower(args).compile()
+    compile_s = time.perf_counter() - t0
+    flops = jax.jit(fn).lower(*args).compile().cost_analysis().get("flops", np.nan)
+    jax.block_until_ready(c(args))
+    ts = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        jax.block_until_ready(c(args))
+        ts.append((time.perf_counter() - t0) / n)
+    return statistics.median(ts), compile_s, float(flops)
+
+
+def flop_rate(repeats=5) -> float:
+    """Sustained float64 flop/s of a fused elementwise kernel on this machine."""
+    x = jnp.linspace(0.0, 1.0, 1_000_000)
+
+    def poly(x):
+        y = jnp.ones_like(x)
+        for k in range(20):
+            y = y * x + (k + 1.0)
+        return y
+
+    f = jax.jit(poly)
+    jax.block_until_ready(f(x))
+    ts = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        jax.block_until_ready(f(x))
+        ts.append(time.perf_counter() - t0)
+    return 40 * x.size / min(ts)
+
+
+def _grasp_state():
+    from grasp import gripper
+
+    lk = gripper()
+    u = jnp.asarray([0.0, 0.2, 0.2])
+    q = sj.solve_statics(lk, u=u, throw=False).q
+    return lk, q, u
+
+
+def scene_parts(name, lk, q, qd, u=None):
+    """The parts of one evaluation as ``(label, function, arguments)``."""
+    data = precompute(lk)
+    t = jnp.zeros(())
+    pr = point_rates(data, q, qd)
+    rows = chain_layout(data).row
+    W = jnp.ones((lk.n_points, 6))
+    parts = [
+        ("kinematics", lambda d, q, qd: point_rates(d, q, qd), (data, q, qd)),
+        ("mass", lambda d, J: _mass_from_J(d, J, rows), (data, pr.J)),
+    ]
+    if lk.contact is not None:
+        parts.append(
+            ("contact", lambda g, eta: contact_wrenches(lk, t, g, eta), (pr.g, pr.eta))
+        )
+    parts.append(("mapping", lambda d, pr, W: force_from_point_rates(d, pr, W),
+                  (data, pr, W)))  # fmt: skip
+    if u is None:
+        M, f = mass_and_force(lk, data, t, q, qd)
+        parts.append(("solve", spd_solve, (M, f)))
+
+        def whole(d, q, qd):
+            return spd_solve(*mass_and_force(lk, d, t, q, qd))
+
+    else:
+
+        def whole(d, q, qd):
+            return constrained_dynamics(lk, d, t, q, qd, lambda _: u).qdd
+
+    parts.append(("evaluation", whole, (data, q, qd)))
+    parts.append(("forward_dynamics", lambda q, qd: sj.forward_dynamics(lk, q, qd, u=u),
+                  (q, qd)))  # fmt: skip
+    return parts
+
+
+def scenes(quick: bool):
+    out = []
+    lk = sj.scenes.free_fall_rod()
+    q = jnp.asarray(sj.scenes.free_fall_q0(lk))
+    out.append(("clamped rod", lk, q, jnp.full(lk.n_dof, 0.01), None))
+    for n in (None, 10, 100) if quick else (None, 10, 100, 1000):
+        lk = resting_rod(n)
+        label = "rod on floor, no contact" if n is None else f"rod on floor, {n} samples"
+        out.append((label, lk, jnp.zeros(lk.n_dof), jnp.full(lk.n_dof, 0.01), None))
+    lk, q, u = _grasp_state()
+    out.append(("grasp", lk, q, jnp.full(lk.n_dof, 0.01), u))
+    return out
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--quick", action="store_true", help="no 1000-sample case")
+    p.add_argument("--repeats", type=int, default=5)
+    a = p.parse_args()
+    rate = flop_rate()
+    print(f"fused elementwise float64 rate: {rate / 1e9:.2f} Gflop/s")
+    rows = []
+    for name, lk, q, qd, u in scenes(a.quick):
+        n_samples = 0
+        if lk.contact is not None:
+            n_samples = len(sj.contact_state(lk, q).link)
+        row = dict(scene=name, n_dof=lk.n_dof, n_points=lk.n_points,
+                   n_contacts=n_samples, parts={})  # fmt: skip
+        for label, fn, args in scene_parts(name, lk, q, qd, u):
+            n = 2000 if lk.n_points < 200 else 200
+            sec, comp, flops = per_call(fn, args, n, a.repeats)
+            row["parts"][label] = dict(us=sec * 1e6, flops=flops, compile_s=comp)
+            print(f"{name:28s} {label:17s} {sec * 1e6:9.1f} us {flops / 1e3:9.1f} kflop")
+        ev = row["parts"]["evaluation"]
+        row["floor_us"] = ev["flops"] / rate * 1e6
+        print(f"{name:28s} floor (flops / rate) {row['floor_us']:.1f} us")
+        rows.append(row)
+    res = environment(flop_rate=rate, scenes=rows)
+    out = ROOT / "benchmarks" / "results" / "evaluation.json"
+    out.parent.mkdir(exist_ok=True)
+    out.write_text(json.dumps(res, indent=1))
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()
