@@ -4,8 +4,9 @@ One evaluation is what every solver stage calls: the kinematics, the mass matrix
 the contact forces, the mapping of all wrenches to generalised forces and the
 linear solve. Each part, and the whole evaluation, is compiled inside a
 ``lax.fori_loop`` of N calls (the loop's input depends on the previous result, so
-nothing is hoisted out and there is no dispatch between calls); the model's
-precomputed arrays are an argument of the program, as inside ``simulate``. The
+nothing is hoisted out and there is no dispatch between calls), with the XLA
+options and runtime flags sorojax compiles and runs its own programs with; the
+model's precomputed arrays are an argument of the program, as inside ``simulate``. The
 public ``forward_dynamics`` is also timed the same way (it computes the model's
 constant arrays inside the call).
 
@@ -44,7 +45,11 @@ import statistics
 import sys
 import time
 
-import jax
+import sorojax as sj
+
+sj.set_runtime_flags()  # as the examples: before JAX starts its backend
+
+import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_enable_compilation_cache", False)
@@ -53,7 +58,6 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 from _common import ROOT, environment  # noqa: E402
 
-import sorojax as sj  # noqa: E402
 from sorojax.dynamics._contact import contact_wrenches  # noqa: E402
 from sorojax.dynamics._eom import (  # noqa: E402
     constrained_dynamics,
@@ -87,10 +91,12 @@ def per_call(fn, args, n, repeats):
 
         return jax.lax.fori_loop(0, n, body, jnp.zeros(()))
 
+    opts = sj.compiler_options()  # the options sorojax compiles its programs with
     t0 = time.perf_counter()
-    c = jax.jit(run).lower(args).compile()
+    c = jax.jit(run, compiler_options=opts).lower(args).compile()
     compile_s = time.perf_counter() - t0
-    flops = jax.jit(fn).lower(*args).compile().cost_analysis().get("flops", np.nan)
+    one = jax.jit(fn, compiler_options=opts).lower(*args).compile()
+    flops = one.cost_analysis().get("flops", np.nan)
     jax.block_until_ready(c(args))
     ts = []
     for _ in range(repeats):
@@ -110,7 +116,7 @@ def flop_rate(repeats=5) -> float:
             y = y * x + (k + 1.0)
         return y
 
-    f = jax.jit(poly)
+    f = jax.jit(poly, compiler_options=sj.compiler_options())
     jax.block_until_ready(f(x))
     ts = []
     for _ in range(repeats):
@@ -171,7 +177,9 @@ def scenes(quick: bool):
     out.append(("clamped rod", lk, q, jnp.full(lk.n_dof, 0.01), None))
     for n in (None, 10, 100) if quick else (None, 10, 100, 1000):
         lk = resting_rod(n)
-        label = "rod on floor, no contact" if n is None else f"rod on floor, {n} samples"
+        label = (
+            "rod on floor, no contact" if n is None else f"rod on floor, {n} samples"
+        )
         out.append((label, lk, jnp.zeros(lk.n_dof), jnp.full(lk.n_dof, 0.01), None))
     lk, q, u = _grasp_state()
     out.append(("grasp", lk, q, jnp.full(lk.n_dof, 0.01), u))
@@ -196,7 +204,9 @@ def main():
             n = 2000 if lk.n_points < 200 else 200
             sec, comp, flops = per_call(fn, args, n, a.repeats)
             row["parts"][label] = dict(us=sec * 1e6, flops=flops, compile_s=comp)
-            print(f"{name:28s} {label:17s} {sec * 1e6:9.1f} us {flops / 1e3:9.1f} kflop")
+            print(
+                f"{name:28s} {label:17s} {sec * 1e6:9.1f} us {flops / 1e3:9.1f} kflop"
+            )
         ev = row["parts"]["evaluation"]
         row["floor_us"] = ev["flops"] / rate * 1e6
         print(f"{name:28s} floor (flops / rate) {row['floor_us']:.1f} us")

@@ -27,6 +27,11 @@ class RESULTS(eqx.Enumeration):
         "raise ContactLaw.stiffness, or take smaller steps."
     )
     failed = "The solver failed (see the underlying optimistix/diffrax result)."
+    contact_overflow = (
+        "More segment pairs of a rod pair (or of a rod's self-contact) can touch "
+        "than the broad phase's capacity: give Contact(pair_capacity=...) a larger "
+        "number (the default is 4 per segment)."
+    )
 
 
 class StaticsSolution(eqx.Module):

@@ -22,12 +22,18 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, ArrayLike, Float
+from jaxtyping import Array, ArrayLike, Bool, Float
 
 from .._jit import jit
 from .._results import RESULTS
 from ..kinematics._api import _as_q
-from ..model._contact import Contact, _safe_norm, contact_links, soft_radius
+from ..model._contact import (
+    Contact,
+    _safe_norm,
+    contact_links,
+    pair_capacity,
+    soft_radius,
+)
 from ..model._linkage import Linkage
 from ..model._precompute import precompute
 
@@ -154,6 +160,8 @@ class ContactState(eqx.Module):
         obstacle_index: obstacle index of each row (0-based), -1 for rod-rod
             pairs; static.
         energy: elastic contact energy [J].
+        overflow: whether more segment pairs could touch than the broad phase
+            holds (``Contact.pair_capacity``): then some contacts are missing.
     """
 
     point: Float[Array, "n 3"]
@@ -165,6 +173,7 @@ class ContactState(eqx.Module):
     link_number: tuple[int, ...] = eqx.field(static=True)
     obstacle_index: tuple[int, ...] = eqx.field(static=True)
     energy: Float[Array, ""]
+    overflow: Bool[Array, ""]
 
     @property
     def link(self) -> np.ndarray:
@@ -359,13 +368,60 @@ def _pair_list(linkage: Linkage):
 def pair_link_b(linkage: Linkage) -> np.ndarray:
     """Link B of every pair row of :class:`ContactState` (rod pairs, then tubes)."""
     out = [
-        np.asarray(sb.link)[gb.start[ib]] for _, _, sb, gb, _, ib in _pair_list(linkage)
+        np.full(len(_capacity(linkage.contact, e)[0]), e[2].link[0])
+        for e in _pair_list(linkage)
     ]
     for rod, body, _ in sphere_rod_pairs(linkage):
         n_body = len(link_samples(linkage, body).point)
         n_seg = len(rod_samples(linkage, rod)[1].start)
         out.append(np.full(n_body * n_seg, rod))
     return np.concatenate(out) if out else np.zeros(0, int)
+
+
+def _take(static, idx):
+    """``static[idx]``: a static table at static or traced indices."""
+    return static[idx] if isinstance(idx, np.ndarray) else jnp.asarray(static)[idx]
+
+
+def _capacity(contact: Contact, entry) -> tuple[np.ndarray, int]:
+    """``(slots, K)``: the narrow phase's rows of one :func:`_pair_list` entry."""
+    sa, ga, sb, gb, ia, _ = entry
+    n_seg = len(ga.start) + (0 if sa is sb else len(gb.start))
+    k = pair_capacity(contact, len(ia), n_seg)
+    return np.arange(k), k
+
+
+def _candidates(contact: Contact, g, entry):
+    """``(ia, ib, overflow)``: the segment pairs the narrow phase examines.
+
+    All of them (static indices) when the capacity holds every pair; else the
+    broad phase: each segment's bounding sphere (centre at its midpoint, radius
+    half its length plus its larger end radius), grown by the law's reach
+    (``smoothing``, a barrier's gap), and the ``K`` pairs whose spheres overlap
+    most, nearest first (``lax.top_k``). A pair left out has spheres apart, so its
+    segments are further apart than their radii and the reach: no force. More
+    overlapping pairs than ``K`` is an ``overflow``.
+    """
+    sa, ga, sb, gb, ia, ib = entry
+    _, k = _capacity(contact, entry)
+    if k >= len(ia):
+        return ia, ib, jnp.zeros((), bool)
+    gs = jax.lax.stop_gradient(g)
+
+    def spheres(smp, seg):
+        x = gs[smp.point, :3, 3]  # rod samples lie on the centre line
+        r = jax.lax.stop_gradient(smp.radius)
+        x0, x1 = x[seg.start], x[seg.end]
+        half = 0.5 * _safe_norm(x1 - x0)
+        return 0.5 * (x0 + x1), half + jnp.maximum(r[seg.start], r[seg.end])
+
+    cA, RA = spheres(sa, ga)
+    cB, RB = (cA, RA) if sa is sb else spheres(sb, gb)
+    reach = jnp.maximum(jax.lax.stop_gradient(contact.law.smoothing), 0.0)
+    gap = _safe_norm(cA[ia] - cB[ib]) - RA[ia] - RB[ib] - reach
+    _, idx = jax.lax.top_k(-gap, k)
+    overflow = jnp.sum(gap < 0) > k
+    return jnp.asarray(ia)[idx], jnp.asarray(ib)[idx], overflow
 
 
 def _segment_velocity(x, w, v, i0, i1, c, lam):
@@ -401,8 +457,8 @@ def _pair_geometry(g, eta, sa, ga, sb, gb, ia, ib) -> _PairGeometry:
     """The segment pairs ``(ia, ib)`` of two rods (or one, for self-contact)."""
     Ra, pa, xa, wa, va = _world_points(g, eta, sa)
     Rb, pb, xb, wb, vb = _world_points(g, eta, sb)
-    a0, a1 = ga.start[ia], ga.end[ia]
-    b0, b1 = gb.start[ib], gb.end[ib]
+    a0, a1 = _take(ga.start, ia), _take(ga.end, ia)
+    b0, b1 = _take(gb.start, ib), _take(gb.end, ib)
     s, u, s_line, u_line, parallel = jax.vmap(_segment_closest)(
         xa[a0], xa[a1], xb[b0], xb[b1]
     )
@@ -433,11 +489,19 @@ def _pair_geometry(g, eta, sa, ga, sb, gb, ia, ib) -> _PairGeometry:
 
 
 def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
-    """Rod-rod contacts: (wrench rows, report rows)."""
+    """Rod-rod contacts: (wrench rows, report rows, overflow).
+
+    Each rod pair's narrow phase works on its broad phase's candidates
+    (:func:`_candidates`).
+    """
     law = contact.law
     W = jnp.zeros((g.shape[0], 6), g.dtype)
     rows = []
-    for sa, ga, sb, gb, ia, ib in pairs:
+    overflow = jnp.zeros((), bool)
+    for entry in pairs:
+        sa, ga, sb, gb, _, _ = entry
+        ia, ib, over = _candidates(contact, g, entry)
+        overflow = overflow | over
         k = _pair_geometry(g, eta, sa, ga, sb, gb, ia, ib)
         a0, a1, b0, b1, s, u = k.a0, k.a1, k.b0, k.b1, k.s, k.u
         share, n, d, cA, cB, v_rel = k.share, k.n, k.d, k.cA, k.cB, k.v_rel
@@ -457,10 +521,10 @@ def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
             (b1, Rb, pb, cB, u, -1.0, sb.point),
         ):
             Wk = _point_wrenches(R_[idx], p_[idx], c_, sign * lam[:, None] * f)
-            W = W.at[pts[idx]].add(Wk)
+            W = W.at[_take(pts, idx)].add(Wk)
         energy = jnp.sum(share * law.potential(d))
-        rows.append((cA, n, d, fn, f, vt, energy, sa.link[a0]))
-    return W, rows
+        rows.append((cA, n, d, fn, f, vt, energy, np.full(d.shape[0], sa.link[0])))
+    return W, rows, overflow
 
 
 def _bore_radii(linkage: Linkage, tube: int) -> Array:
@@ -581,7 +645,7 @@ def contact_wrenches(linkage: Linkage, t, g, eta=None) -> Array:
 
 def contact_wrenches_and_penetrations(linkage: Linkage, t, g) -> tuple[Array, Array]:
     """Frictionless contact wrenches and every contact's penetration (statics)."""
-    W, rows, _ = _contact(linkage, t, g, None)
+    W, rows, _, _ = _contact(linkage, t, g, None)
     pen = [r[2] for r in rows]
     return W, (jnp.concatenate(pen) if pen else jnp.zeros((0,), g.dtype))
 
@@ -607,11 +671,17 @@ def smallest_radius(linkage: Linkage) -> Array:
 
 
 def _contact(linkage: Linkage, t, g, eta):
+    """``(W, rows, labels, overflow)``: wrenches, report rows and their labels.
+
+    Where the broad phase overflowed the wrenches are NaN: a solver stops there
+    (the report says why) rather than going on without some contacts.
+    """
     contact = linkage.contact
     assert contact is not None
     friction = eta is not None
     W = jnp.zeros((g.shape[0], 6), g.dtype)
     rows, labels = [], []
+    overflow = jnp.zeros((), bool)
     if contact.obstacles:
         samples = obstacle_samples(linkage)
         Wo, ro = _obstacle_terms(contact, samples, g, eta, t, friction)
@@ -621,7 +691,7 @@ def _contact(linkage: Linkage, t, g, eta):
             labels.append((samples.link, np.full(len(samples.link), k)))
     pairs = _pair_list(linkage)
     if pairs:
-        Wp, rp = _pair_terms(contact, pairs, g, eta, friction)
+        Wp, rp, overflow = _pair_terms(contact, pairs, g, eta, friction)
         W = W + Wp
         for r in rp:
             rows.append(r[:7])
@@ -632,12 +702,13 @@ def _contact(linkage: Linkage, t, g, eta):
         for r in ri:
             rows.append(r[:7])
             labels.append((np.asarray(r[7]), np.full(len(r[7]), -1)))
-    return W, rows, labels
+    W = jnp.where(overflow, jnp.nan, W)
+    return W, rows, labels, overflow
 
 
 def contact_energy_from_poses(linkage: Linkage, g) -> Array:
     """Elastic contact energy [J] at poses ``g``."""
-    _, rows, _ = _contact(linkage, 0.0, g, None)
+    _, rows, _, _ = _contact(linkage, 0.0, g, None)
     return sum((r[6] for r in rows), jnp.zeros((), g.dtype))
 
 
@@ -683,17 +754,19 @@ def state_from_data(linkage: Linkage, data, q, qd, t) -> ContactState:
     else:
         pr = point_rates(data, q, qd)
         g, eta = pr.g, pr.eta
-    _, rows, labels = _contact(linkage, t, g, eta)
+    _, rows, labels, overflow = _contact(linkage, t, g, eta)
     if not rows:
         z = jnp.zeros((0,), q.dtype)
         z3 = jnp.zeros((0, 3), q.dtype)
-        return ContactState(z3, z3, z, z, z3, z3, (), (), jnp.zeros((), q.dtype))
+        zero = jnp.zeros((), q.dtype)
+        return ContactState(z3, z3, z, z, z3, z3, (), (), zero, overflow)
     cat = [jnp.concatenate([r[k] for r in rows]) for k in range(6)]
     return ContactState(
         *cat,
         link_number=tuple(int(i) for lab in labels for i in lab[0]),
         obstacle_index=tuple(int(i) for lab in labels for i in lab[1]),
         energy=sum(r[6] for r in rows),
+        overflow=overflow,
     )
 
 
@@ -715,7 +788,10 @@ def contact_report(linkage: Linkage, data, t, q, qd, result):
     pen = jnp.where(jnp.isfinite(states.penetration), states.penetration, -jnp.inf)
     deep = jnp.max(pen, initial=-jnp.inf) > smallest_radius(linkage)
     ok = result == RESULTS.successful
-    return states, RESULTS.where(deep & ok, RESULTS.contact_too_deep, result)
+    result = RESULTS.where(deep & ok, RESULTS.contact_too_deep, result)
+    return states, RESULTS.where(
+        jnp.any(states.overflow), RESULTS.contact_overflow, result
+    )
 
 
 @jit
@@ -794,7 +870,9 @@ def contact_tangent(linkage: Linkage, t, g, J, eta) -> tuple[Array, Array]:
                 contact.obstacle_law(k), samples.weight, d, n, v_rel, Jc
             )
             Kc, Dc = Kc + K, Dc + D
-    for sa, ga, sb, gb, ia, ib in _pair_list(linkage):
+    for entry in _pair_list(linkage):
+        sa, ga, sb, gb, _, _ = entry
+        ia, ib, _ = _candidates(contact, g, entry)
         k = _pair_geometry(g, eta, sa, ga, sb, gb, ia, ib)
         Jc = 0.0
         for pts, idx, c, lam in (
@@ -803,7 +881,7 @@ def contact_tangent(linkage: Linkage, t, g, J, eta) -> tuple[Array, Array]:
             (sb.point, k.b0, k.cB, -(1 - k.u)),
             (sb.point, k.b1, k.cB, -k.u),
         ):
-            Jc = Jc + lam[:, None, None] * _point_jacobian(g, J, pts[idx], c)
+            Jc = Jc + lam[:, None, None] * _point_jacobian(g, J, _take(pts, idx), c)
         K, D = _tangent_terms(
             law, k.share, k.d, k.n, k.v_rel, Jc, contact.friction_in_rod_pairs
         )

@@ -633,6 +633,14 @@ class Contact(eqx.Module):
             damping (obstacles, rod pairs, self-contact and tubes; default True:
             stiff contact and sticking friction then do not bound its step;
             ``benchmarks/contact.py`` measures both).
+        pair_capacity: most segment pairs of one rod pair (or one rod's
+            self-contact) that the narrow phase examines at once (default:
+            :func:`pair_capacity` picks 4 per segment of the two rods). A broad
+            phase keeps the pairs whose bounding spheres (each segment's, grown by
+            its radius and the law's reach) overlap, nearest first; where more
+            overlap than this, the dynamics ends with ``RESULTS.contact_overflow``
+            and statics says so too: raise it then. With at least as many as there
+            are segment pairs, every pair is examined (no broad phase).
     """
 
     obstacles: tuple[AbstractObstacle, ...]
@@ -651,6 +659,7 @@ class Contact(eqx.Module):
     obstacle_law_index: tuple[int, ...] = eqx.field(static=True)
     tangent_in_w: bool = eqx.field(static=True)
     cells: tuple | None = eqx.field(static=True)  # resolved by the Linkage
+    pair_capacity: int | None = eqx.field(static=True, default=None)
 
     def __init__(
         self,
@@ -667,6 +676,7 @@ class Contact(eqx.Module):
         obstacle_laws=None,
         tangent_in_w: bool = True,
         cells: tuple | None = None,
+        pair_capacity: int | None = None,
     ):
         if isinstance(obstacles, AbstractObstacle):
             obstacles = (obstacles,)
@@ -729,6 +739,16 @@ class Contact(eqx.Module):
         self.obstacle_laws = tuple(obstacle_laws[k] for k in sorted(obstacle_laws))
         self.tangent_in_w = bool(tangent_in_w)
         self.cells = cells
+        if pair_capacity is not None and (
+            isinstance(pair_capacity, bool)
+            or not isinstance(pair_capacity, (int, np.integer))
+            or pair_capacity < 1
+        ):
+            raise ValueError(
+                f"Contact.pair_capacity = {pair_capacity!r}: give a whole number "
+                ">= 1 of segment pairs, or None for the default (4 per segment)."
+            )
+        self.pair_capacity = None if pair_capacity is None else int(pair_capacity)
 
     def shape_of(self, link: int) -> AbstractContactShape | None:
         """The contact shape of rigid link ``link`` (None if it has none)."""
@@ -910,4 +930,21 @@ def resolve_contact(contact: Contact, links) -> Contact:
         ),
         tangent_in_w=contact.tangent_in_w,
         cells=tuple(cells),
+        pair_capacity=contact.pair_capacity,
     )
+
+
+PAIRS_PER_SEGMENT = 4  # default broad-phase capacity per segment of a rod pair
+
+
+def pair_capacity(contact: Contact, n_pairs: int, n_segments: int) -> int:
+    """Segment pairs the narrow phase examines for one rod pair (static).
+
+    ``n_pairs``: the pair's segment pairs; ``n_segments``: its two rods' segments
+    (one rod's, for self-contact). At most ``n_pairs`` (then there is no broad
+    phase).
+    """
+    k = contact.pair_capacity
+    if k is None:
+        k = PAIRS_PER_SEGMENT * n_segments
+    return min(int(k), int(n_pairs))

@@ -604,6 +604,7 @@ def _solve_statics(
         result = RESULTS.where(
             deep & (result == RESULTS.successful), RESULTS.contact_too_deep, result
         )
+        result = RESULTS.where(contact.overflow, RESULTS.contact_overflow, result)
     stable, n_negative, lam_min = stability_summary(eigenvalues, n_manifold)
     stable = stable & (result == RESULTS.successful)  # no verdict on a failed solve
     return StaticsSolution(

@@ -1,0 +1,192 @@
+"""Contact samples as leaves of the kinematic chain, and the rod pairs' broad phase.
+
+A contact sample that is not a chain point (an end, a Gauss or a load point) is a
+leaf: one Magnus step from the chain point before it. Its pose, twist, Jacobian and
+twist rate must be those of that step (checked against autodiff of the poses), the
+chain's points must not move when samples are added, and the dynamics, which forms
+Jacobians at the chain's points only, must map the leaves' wrenches exactly as J^T.
+The broad phase must give the narrow phase every pair that can touch (the same
+forces as examining every pair), and say so when it cannot.
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import sorojax as sj
+from sorojax.dynamics._wrench_recursion import (
+    force_from_point_rates,
+    force_from_wrenches,
+    poses_with_records,
+)
+from sorojax.kinematics._recursion import kinematics_and_rates, point_rates
+from sorojax.model._precompute import precompute
+
+
+def _rod(n_samples):
+    """A rod on a planar joint, bending both ways (quadratic), over a floor."""
+    rod = sj.SoftLink(
+        [sj.Division(0.3, sj.CircularSection(0.01),
+                     sj.LegendreBasis((0, 1, 1, 0, 0, 0), 2))],
+        sj.Material(E=1e6, rho=1000.0, eta=1e3),
+        joint=sj.Joint("A", axis=(0, 1, 0)),
+    )  # fmt: skip
+    contact = None
+    if n_samples:
+        law = sj.ContactLaw(stiffness=1e4, smoothing=1e-4, damping=10.0,
+                            static_friction=0.5)  # fmt: skip
+        contact = sj.Contact(sj.Plane(), law, spacing=0.3 / (n_samples - 1))
+    return sj.Linkage([rod], gravity=(0, 0, -9.81), contact=contact)
+
+
+@pytest.fixture(scope="module")
+def rods():
+    return _rod(None), _rod(13)
+
+
+@pytest.fixture(scope="module")
+def state(rods):
+    rng = np.random.default_rng(3)
+    n = rods[1].n_dof
+    return jnp.asarray(rng.normal(size=n)), jnp.asarray(rng.normal(size=n))
+
+
+def test_samples_are_leaves_and_leave_the_chain_unchanged(rods, state):
+    bare, sampled = rods
+    lay = sampled.layout
+    assert lay.point_leaf.sum() == 12 - 1  # 13 samples, the end's on the chain...
+    # ...less those at the ends and Gauss points (none here but the two ends)
+    q, _ = state
+    g0, g1 = sj.forward_kinematics(bare, q), sj.forward_kinematics(sampled, q)
+    chain = np.flatnonzero(~lay.point_leaf)
+    # same chain, same poses: bit for bit (the same steps, in the same order)
+    np.testing.assert_array_equal(np.asarray(g1[chain]), np.asarray(g0))
+
+
+def test_leaf_twists_jacobians_and_rates_are_the_derivatives_of_the_poses(rods, state):
+    _, lk = rods
+    q, qd = state
+    data = precompute(lk)
+    g, J, eta, etadot = kinematics_and_rates(data, q, qd)
+    gdot = jax.jvp(lambda q_: sj.forward_kinematics(lk, q_), (q,), (qd,))[1]
+    Rt = jnp.swapaxes(g[:, :3, :3], 1, 2)
+    W = Rt @ gdot[:, :3, :3]
+    twist = jnp.concatenate(
+        [jnp.stack([W[:, 2, 1], W[:, 0, 2], W[:, 1, 0]], 1),
+         jnp.einsum("pij,pj->pi", Rt, gdot[:, :3, 3])], axis=1,
+    )  # fmt: skip
+    # round-off of O(10) products of unit-size numbers
+    np.testing.assert_allclose(eta, twist, atol=1e-12, err_msg="eta = (g^-1 gdot)^v")
+    np.testing.assert_allclose(eta, J @ qd, atol=1e-12, err_msg="eta = J qd")
+    rate = jax.jvp(lambda q_: kinematics_and_rates(data, q_, qd)[2], (q,), (qd,))[1]
+    np.testing.assert_allclose(etadot, rate, atol=1e-11, err_msg="Jdot qd")
+    pr = point_rates(data, q, qd)
+    np.testing.assert_allclose(pr.g, g, atol=0.0, err_msg="point_rates poses")
+    np.testing.assert_allclose(pr.eta, eta, atol=1e-13, err_msg="point_rates twists")
+
+
+def test_leaves_wrenches_map_as_their_jacobians_transpose(rods, state):
+    _, lk = rods
+    q, qd = state
+    data = precompute(lk)
+    W = jnp.asarray(np.random.default_rng(4).normal(size=(lk.n_points, 6)))
+    J = kinematics_and_rates(data, q, qd)[1]
+    want = jnp.einsum("pai,pa->i", J, W)
+    tol = 1e-12 * float(jnp.max(jnp.abs(want)))  # round-off of sums of O(100) terms
+    got = force_from_point_rates(data, point_rates(data, q, qd), W)
+    np.testing.assert_allclose(got, want, atol=tol, err_msg="dynamics' mapping")
+    got = force_from_wrenches(data, poses_with_records(data, q)[1], W)
+    np.testing.assert_allclose(got, want, atol=tol, err_msg="backward recursion")
+
+
+def test_leaf_on_a_constant_strain_rod_lies_on_the_exact_arc():
+    """Constant curvature: every Magnus step is exact, so is every leaf's pose."""
+    L, kappa = 0.5, 3.0
+    rod = sj.SoftLink(
+        [sj.Division(L, sj.CircularSection(0.01), sj.LegendreBasis((0, 0, 1, 0, 0, 0), 0))],
+        sj.Material(E=1e6, rho=1000.0),
+    )  # fmt: skip
+    law = sj.ContactLaw(stiffness=1e4, smoothing=1e-4)
+    lk = sj.Linkage(
+        [rod], contact=sj.Contact(sj.Plane(point=(0.0, 0.0, -1.0)), law, spacing=L / 7)
+    )
+    q = sj.strain_coordinates(lk, [0.0, 0.0, kappa, 0.0, 0.0, 0.0])
+    g = sj.forward_kinematics(lk, q)
+    lay = lk.layout
+    leaves = np.flatnonzero(lay.point_leaf)
+    assert len(leaves) >= 5
+    s = lay.point_X1[leaves] * L
+    exact = np.stack([np.sin(kappa * s) / kappa, (1 - np.cos(kappa * s)) / kappa], 1)
+    np.testing.assert_allclose(g[leaves, :2, 3], exact, atol=1e-13)
+
+
+def _crossing(capacity):
+    """Two rods crossing at right angles, the upper one 5 mm into the lower."""
+    rods = [
+        sj.SoftLink(
+            [
+                sj.Division(
+                    1.0,
+                    sj.CircularSection(0.01),
+                    sj.LegendreBasis((0, 1, 1, 0, 0, 0), 3),
+                )
+            ],
+            sj.Material(E=1e6, rho=1000.0, eta=100.0),
+        )  # fmt: skip
+        for _ in range(2)
+    ]
+    pl = np.stack([np.eye(4)] * 2)
+    pl[0, :3, 3] = [-0.5, 0.0, 0.0]
+    pl[1, :3, :3] = [[0, -1, 0], [1, 0, 0], [0, 0, 1]]
+    pl[1, :3, 3] = [0.0, -0.5, 0.0185]
+    law = sj.ContactLaw(stiffness=1e4, smoothing=1e-4, damping=1.0,
+                        static_friction=0.3)  # fmt: skip
+    c = sj.Contact((), law, rod_pairs=[(1, 2)], spacing=0.02, pair_capacity=capacity)
+    return sj.Linkage(rods, parents=(0, 0), placements=pl, gravity=(0, 0, -9.81),
+                      contact=c)  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def crossings():
+    # default capacity: 4 per segment (400 of the 2500 segment pairs); every pair
+    return _crossing(None), _crossing(10**6)
+
+
+def test_broad_phase_gives_the_forces_of_every_pair(crossings):
+    broad, every = crossings
+    rng = np.random.default_rng(0)
+    q = jnp.asarray(rng.normal(size=broad.n_dof)) * 0.002
+    qd = jnp.asarray(rng.normal(size=broad.n_dof)) * 0.1
+    a, b = sj.contact_state(broad, q, qd), sj.contact_state(every, q, qd)
+    assert (len(a.link), len(b.link)) == (400, 2500)
+    assert not bool(a.overflow)
+    assert int(jnp.sum(b.active)) >= 2, "the rods must touch for this test"
+    assert int(jnp.sum(a.active)) == int(jnp.sum(b.active))
+    np.testing.assert_allclose(
+        jnp.sum(a.force, 0), jnp.sum(b.force, 0), rtol=1e-12, err_msg="total force"
+    )
+    fa, fb = sj.forward_dynamics(broad, q, qd), sj.forward_dynamics(every, q, qd)
+    # the same contacts summed in another order: round-off
+    np.testing.assert_allclose(fa, fb, atol=1e-12 * float(jnp.max(jnp.abs(fb))))
+
+    def loss(lk, q):
+        return jnp.sum(sj.forward_dynamics(lk, q, qd) ** 2)
+
+    ga, gb = (
+        jax.grad(lambda q: loss(broad, q))(q),
+        jax.grad(lambda q: loss(every, q))(q),
+    )
+    np.testing.assert_allclose(ga, gb, atol=1e-10 * float(jnp.max(jnp.abs(gb))))
+
+
+def test_broad_phase_overflow_is_a_result_code_not_a_missed_contact():
+    lk = _crossing(2)  # fewer than the overlapping pairs
+    q = jnp.zeros(lk.n_dof)
+    assert bool(sj.contact_state(lk, q).overflow)
+    assert not np.any(np.isfinite(np.asarray(sj.forward_dynamics(lk, q, q))))
+    # NaN forces: every step is rejected (until max_steps), and the report says why
+    tr = sj.simulate(lk, 0.01, q, n_save=2, max_steps=8, throw=False)
+    assert tr.result == sj.RESULTS.contact_overflow
+    with pytest.raises(ValueError, match="pair_capacity"):
+        sj.Contact((), sj.ContactLaw(stiffness=1.0), pair_capacity=0)
