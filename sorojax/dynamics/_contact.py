@@ -392,20 +392,22 @@ def _capacity(contact: Contact, entry) -> tuple[np.ndarray, int]:
 
 
 def _candidates(contact: Contact, g, entry):
-    """``(ia, ib, overflow)``: the segment pairs the narrow phase examines.
+    """``(ia, ib, valid, overflow)``: the segment pairs the narrow phase examines.
 
-    All of them (static indices) when the capacity holds every pair; else the
-    broad phase: each segment's bounding sphere (centre at its midpoint, radius
-    half its length plus its larger end radius), grown by the law's reach
-    (``smoothing``, a barrier's gap), and the ``K`` pairs whose spheres overlap
-    most, nearest first (``lax.top_k``). A pair left out has spheres apart, so its
+    All of them (static indices, ``valid`` None) when the capacity holds every
+    pair; else the broad phase: each segment's bounding sphere (centre at its
+    midpoint, radius half its length plus its larger end radius), grown by the law's
+    reach (``smoothing``, a barrier's gap), and the pairs whose spheres overlap,
+    gathered in their order into ``K`` rows (``jnp.nonzero`` with a fixed size:
+    a prefix sum, no sort); ``valid`` marks the rows that hold one (the others
+    repeat pair 0 and carry no force). A pair left out has spheres apart, so its
     segments are further apart than their radii and the reach: no force. More
     overlapping pairs than ``K`` is an ``overflow``.
     """
     sa, ga, sb, gb, ia, ib = entry
     _, k = _capacity(contact, entry)
     if k >= len(ia):
-        return ia, ib, jnp.zeros((), bool)
+        return ia, ib, None, jnp.zeros((), bool)
     gs = jax.lax.stop_gradient(g)
 
     def spheres(smp, seg):
@@ -419,9 +421,11 @@ def _candidates(contact: Contact, g, entry):
     cB, RB = (cA, RA) if sa is sb else spheres(sb, gb)
     reach = jnp.maximum(jax.lax.stop_gradient(contact.law.smoothing), 0.0)
     gap = _safe_norm(cA[ia] - cB[ib]) - RA[ia] - RB[ib] - reach
-    _, idx = jax.lax.top_k(-gap, k)
-    overflow = jnp.sum(gap < 0) > k
-    return jnp.asarray(ia)[idx], jnp.asarray(ib)[idx], overflow
+    near = gap < 0
+    (idx,) = jnp.nonzero(near, size=k, fill_value=0)
+    count = jnp.sum(near)
+    valid = jnp.arange(k) < count
+    return jnp.asarray(ia)[idx], jnp.asarray(ib)[idx], valid, count > k
 
 
 def _segment_velocity(x, w, v, i0, i1, c, lam):
@@ -453,8 +457,12 @@ class _PairGeometry(NamedTuple):
     frames: tuple  # (Ra, pa, Rb, pb): the samples' frames
 
 
-def _pair_geometry(g, eta, sa, ga, sb, gb, ia, ib) -> _PairGeometry:
-    """The segment pairs ``(ia, ib)`` of two rods (or one, for self-contact)."""
+def _pair_geometry(g, eta, sa, ga, sb, gb, ia, ib, valid=None) -> _PairGeometry:
+    """The segment pairs ``(ia, ib)`` of two rods (or one, for self-contact).
+
+    ``valid``: False at the broad phase's empty rows (no share, a gap of twice the
+    radii: no force).
+    """
     Ra, pa, xa, wa, va = _world_points(g, eta, sa)
     Rb, pb, xb, wb, vb = _world_points(g, eta, sb)
     a0, a1 = _take(ga.start, ia), _take(ga.end, ia)
@@ -477,6 +485,9 @@ def _pair_geometry(g, eta, sa, ga, sb, gb, ia, ib) -> _PairGeometry:
     dist = _safe_norm(dvec)
     n = dvec / jnp.maximum(dist, 1e-12)[:, None]
     d = rA + rB - dist
+    if valid is not None:
+        share = jnp.where(valid, share, 0.0)
+        d = jnp.where(valid, d, -(rA + rB))
     cA = PA - rA[:, None] * n
     cB = PB + rB[:, None] * n
 
@@ -500,9 +511,9 @@ def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
     overflow = jnp.zeros((), bool)
     for entry in pairs:
         sa, ga, sb, gb, _, _ = entry
-        ia, ib, over = _candidates(contact, g, entry)
+        ia, ib, valid, over = _candidates(contact, g, entry)
         overflow = overflow | over
-        k = _pair_geometry(g, eta, sa, ga, sb, gb, ia, ib)
+        k = _pair_geometry(g, eta, sa, ga, sb, gb, ia, ib, valid)
         a0, a1, b0, b1, s, u = k.a0, k.a1, k.b0, k.b1, k.s, k.u
         share, n, d, cA, cB, v_rel = k.share, k.n, k.d, k.cA, k.cB, k.v_rel
         Ra, pa, Rb, pb = k.frames
@@ -872,8 +883,8 @@ def contact_tangent(linkage: Linkage, t, g, J, eta) -> tuple[Array, Array]:
             Kc, Dc = Kc + K, Dc + D
     for entry in _pair_list(linkage):
         sa, ga, sb, gb, _, _ = entry
-        ia, ib, _ = _candidates(contact, g, entry)
-        k = _pair_geometry(g, eta, sa, ga, sb, gb, ia, ib)
+        ia, ib, valid, _ = _candidates(contact, g, entry)
+        k = _pair_geometry(g, eta, sa, ga, sb, gb, ia, ib, valid)
         Jc = 0.0
         for pts, idx, c, lam in (
             (sa.point, k.a0, k.cA, 1 - k.s),

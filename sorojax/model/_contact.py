@@ -637,8 +637,8 @@ class Contact(eqx.Module):
             self-contact) that the narrow phase examines at once (default:
             :func:`pair_capacity` picks 4 per segment of the two rods). A broad
             phase keeps the pairs whose bounding spheres (each segment's, grown by
-            its radius and the law's reach) overlap, nearest first; where more
-            overlap than this, the dynamics ends with ``RESULTS.contact_overflow``
+            its radius and the law's reach) overlap; where more overlap than
+            this, the dynamics ends with ``RESULTS.contact_overflow``
             and statics says so too: raise it then. With at least as many as there
             are segment pairs, every pair is examined (no broad phase).
     """
