@@ -23,10 +23,11 @@ from .._jit import jit
 from ..kinematics._api import Kinematics, _as_q
 from ..kinematics._recursion import (
     PointRates,
-    chain_layout,
+    full_point_rates,
     jacobians_dot,
     kinematics_and_rates,
     point_rates,
+    rows_of,
     strains,
 )
 from ..model._checks import check_finite, is_concrete
@@ -93,15 +94,15 @@ def mass_and_force(
     g, eta = rates.g, rates.eta
     if kin_fn is None:
         kin_fn = lazy_kinematics(data, q, qd)
-    lay = chain_layout(data)
+    row = rows_of(data, rates)
     idx = np.asarray(data.mass_points, dtype=int)
-    rows = lay.row[idx]  # the mass points' rows in the chain's arrays
+    rows = row[idx]  # the mass points' rows in J
     J_m = rates.J[rows]
     Mw = data.point_weight[idx, None, None] * data.point_M[idx]
     W_m = gravity_wrenches(data, g[idx], idx) - _gyroscopic(
         Mw, eta[idx], rates.etadot[rows]
     )
-    M = _mass_from_J(data, rates.J, lay.row)
+    M = _mass_from_J(data, rates.J, row)
     if linkage.added_mass is not None:
         Ma = data.point_weight[idx, None, None] * linkage.added_mass[idx]
         W_m = W_m - jnp.einsum("pab,pb->pa", Ma, rates.etadot[rows])
@@ -213,12 +214,14 @@ def constrained_dynamics(
     u_fn: InputFunction,
     generalized_force: GeneralizedForce | None = None,
     return_rates: bool = False,
+    full: bool = False,
 ):
     """The saddle-point solve with prescribed coordinates and closed loops.
 
     Returns the :class:`ConstrainedState`, and with ``return_rates`` also the
-    coordinates it used (``q`` with the prescribed values), for a caller that needs
-    the kinematics there too.
+    kinematics it used (:class:`~sorojax.kinematics._recursion.PointRates`, at the
+    prescribed values), every point's Jacobian in them with ``full`` (for the
+    contacts' tangent).
 
     ``M qdd = f + G^T mu`` with constraint rows ``G qdd = b``: one-hot rows
     ``qdd_p = u''(t)`` for prescribed coordinates (their values and velocities are
@@ -237,7 +240,7 @@ def constrained_dynamics(
         q, qd = q.at[qi].set(qp), qd.at[qi].set(qdp)
         rows.append(jnp.eye(n, dtype=q.dtype)[qi])
         rhs.append(qddp)
-    rates = point_rates(data, q, qd)
+    rates = (full_point_rates if full else point_rates)(data, q, qd)
     if linkage.closed_loops:
         e, A, bias = constraint_terms_from_kinematics(
             linkage,
@@ -245,7 +248,7 @@ def constrained_dynamics(
             rates.J,
             rates.eta,
             rates.etadot,
-            rows=chain_layout(data).row,
+            rows=rows_of(data, rates),
         )
         Tb = linkage.baumgarte_time
         rows.append(A)
@@ -269,7 +272,7 @@ def constrained_dynamics(
     st = ConstrainedState(
         qd=qd, qdd=qdd, u=u_eff, efforts=mu[: len(qi)], lam=mu[len(qi) :], M=M
     )
-    return (st, q) if return_rates else st
+    return (st, rates) if return_rates else st
 
 
 def consistent_velocities(
@@ -298,7 +301,7 @@ def consistent_velocities(
                 rates.J,
                 rates.eta,
                 rates.etadot,
-                rows=chain_layout(data).row,
+                rows=rows_of(data, rates),
             )[1]
         )
         rhs.append(jnp.zeros(linkage.n_constraints, q.dtype))

@@ -575,6 +575,23 @@ class PointRates(NamedTuple):
     leaves: "Steps | _leaves.LeafSteps | None"
 
 
+def rows_of(data: LinkageData, pr: PointRates) -> np.ndarray:
+    """Each point's row in ``pr.J`` and ``pr.etadot`` (-1: none, a leaf's)."""
+    if pr.J.shape[0] == pr.g.shape[0]:  # a row per point
+        return np.arange(pr.g.shape[0])
+    return chain_layout(data).row
+
+
+def full_point_rates(data: LinkageData, q, qd) -> PointRates:
+    """:class:`PointRates` with every point's Jacobian and rate, leaves included.
+
+    For a caller that needs the leaves' Jacobians too (the contacts' tangent in
+    ROS34PW2's W): one pass serves both.
+    """
+    g, J, eta, etadot = kinematics_and_rates(data, q, qd)
+    return PointRates(g, eta, J, etadot, None)
+
+
 def point_rates(data: LinkageData, q, qd) -> PointRates:
     """:class:`PointRates` at ``(q, qd)``.
 
