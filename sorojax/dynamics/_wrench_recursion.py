@@ -20,7 +20,6 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from ..kinematics import _leaves
 from ..kinematics._recursion import (
     _Ad,
     chain_layout,
@@ -50,10 +49,6 @@ def poses_with_records(data: LinkageData, q):
     k = steps(data, q)
     ct = chain_terms(data, k, lay)
     g = point_poses(ct, lay, link_base_poses(data, ct, lay))
-    if data.leaf_data is not None:  # 4th order: the component-major kernels
-        kl = _leaves.leaf_steps(data, _leaves.leaf_layout(data), q)
-        g_l = _leaves.leaf_poses(g[lay.leaf_row], kl)
-        return with_leaves(lay, g, g_l), (k, ct, lay, kl)
     kl = leaf_steps(data, q)
     return with_leaves(lay, g, leaf_poses(lay, g, kl)), (k, ct, lay, kl)
 
@@ -69,10 +64,6 @@ def leaf_wrenches(data: LinkageData, lay, kl, W):
     Wc = W[lay.core]
     if kl is None:
         return Wc, jnp.zeros(data.n_dof, W.dtype)
-    if isinstance(kl, _leaves.LeafSteps):
-        ll = _leaves.leaf_layout(data)
-        y, F = _leaves.leaf_wrenches(data, ll, kl, W[np.asarray(data.leaf_points)])
-        return Wc + leaf_sums(lay, y), F
     y = from_step_end(kl.R, kl.p, W[np.asarray(data.leaf_points)])
     z = tangent_transpose_apply(kl.T, y)
     F = step_jacobians_transpose(data, kl, z, st=data.leaf_steps)

@@ -38,7 +38,6 @@ from jaxtyping import Array, Float
 
 from ..lie import Ad, Ad_inv, ad
 from ..model._precompute import LinkageData
-from . import _leaves
 from ._step import ad_apply as _ad_apply
 from ._step import ad_transpose_apply as _ad_transpose_apply
 from ._step import (
@@ -572,7 +571,7 @@ class PointRates(NamedTuple):
     eta: Array
     J: Array
     etadot: Array
-    leaves: "Steps | _leaves.LeafSteps | None"
+    leaves: Steps | None
 
 
 def rows_of(data: LinkageData, pr: PointRates) -> np.ndarray:
@@ -601,14 +600,6 @@ def point_rates(data: LinkageData, q, qd) -> PointRates:
     g, X, (_, _, lay) = _tree_pass(data, q, None, qd, core_only=True)
     n = data.n_dof
     J, eta, etadot = X[..., :n], X[..., n], X[..., n + 1]
-    if data.leaf_data is not None:  # 4th order: the component-major kernels
-        ll = _leaves.leaf_layout(data)
-        kl = _leaves.leaf_steps(data, ll, q)
-        eta_l = _leaves.leaf_twists(data, ll, kl, eta[lay.leaf_row], qd)
-        g_l = _leaves.leaf_poses(g[lay.leaf_row], kl)
-        return PointRates(
-            with_leaves(lay, g, g_l), with_leaves(lay, eta, eta_l), J, etadot, kl
-        )
     kl = leaf_steps(data, q)
     if kl is None:
         return PointRates(g, eta, J, etadot, None)

@@ -176,49 +176,6 @@ def _step_data(links: list, n: int, order: int, leaves: bool = False) -> StepDat
     )
 
 
-class LeafData(eqx.Module):
-    """The leaves' steps, component-major (leaves last), for 4th-order models.
-
-    Attributes:
-        h: (n_leaves,) step lengths [m].
-        c: (n_leaves,) commutator weights ``sqrt(3) h^2 / 12``.
-        basis: (n_local, 2, 6, n_leaves) each leaf's division's basis at the step's
-            Zanna points (its own columns, zero-padded to the widest division).
-        xi_ref: (2, 6, n_leaves) reference strains there.
-    """
-
-    h: Float[Array, " n_leaves"]
-    c: Float[Array, " n_leaves"]
-    basis: Float[Array, "n_local 2 6 n_leaves"]
-    xi_ref: Float[Array, "2 6 n_leaves"]
-
-
-def _leaf_data(links: list) -> LeafData:
-    divs = [
-        dd
-        for ld in links
-        if ld.soft
-        for dd in ld.divisions
-        if dd.leaf_h is not None and dd.leaf_h.shape[0]
-    ]
-    n_local = max(dd.n_dof for dd in divs)
-    basis = []
-    for dd in divs:
-        P = jnp.moveaxis(dd.leaf_Phi_z, 0, -1)  # (nz, 6, n, m)
-        P = jnp.moveaxis(P, 2, 0)  # (n, nz, 6, m)
-        pad = jnp.zeros((n_local - dd.n_dof,) + P.shape[1:], P.dtype)
-        basis.append(jnp.concatenate([P, pad]))
-    h = jnp.concatenate([dd.leaf_h for dd in divs])
-    return LeafData(
-        h=h,
-        c=_C * h * h,
-        basis=jnp.concatenate(basis, axis=-1),
-        xi_ref=jnp.concatenate(
-            [jnp.moveaxis(dd.leaf_xi_ref_z, 0, -1) for dd in divs], axis=-1
-        ),
-    )
-
-
 class LinkageData(eqx.Module):
     """Everything the kernels need, derived from a :class:`Linkage`.
 
@@ -239,8 +196,6 @@ class LinkageData(eqx.Module):
             the order of ``leaf_points``.
         leaf_points: point index of every leaf, static.
         leaf_parents: point index of the chain point each leaf hangs from, static.
-        leaf_data: the leaves' steps component-major (4th-order models with leaves;
-            else None): :mod:`sorojax.kinematics._leaves`.
         locked: (n_dof,) 1 at the padding coordinates of size-class models
             (:func:`~sorojax.size_class`), 0 elsewhere; None (static) when no
             division is padded. ``K`` holds them at zero with the mean diagonal
@@ -261,7 +216,6 @@ class LinkageData(eqx.Module):
     leaf_steps: StepData | None = None
     leaf_points: tuple[int, ...] = eqx.field(static=True, default=())
     leaf_parents: tuple[int, ...] = eqx.field(static=True, default=())
-    leaf_data: LeafData | None = None
 
 
 def lock_padding(A: Array, locked: Array | None) -> Array:
@@ -426,7 +380,6 @@ def _precompute(linkage: Linkage) -> LinkageData:
         leaf_steps=_step_data(links, n, order, leaves=True) if leaf_points else None,
         leaf_points=tuple(leaf_points),
         leaf_parents=tuple(leaf_parents),
-        leaf_data=_leaf_data(links) if leaf_points and order == 4 else None,
     )
 
 
