@@ -170,6 +170,14 @@ def test_broad_phase_gives_the_forces_of_every_pair(crossings):
     # the same contacts summed in another order: round-off
     np.testing.assert_allclose(fa, fb, atol=1e-12 * float(jnp.max(jnp.abs(fb))))
 
+
+@pytest.mark.slow
+def test_broad_phase_gradients_equal_those_of_every_pair(crossings):
+    broad, every = crossings
+    rng = np.random.default_rng(0)
+    q = jnp.asarray(rng.normal(size=broad.n_dof)) * 0.002
+    qd = jnp.asarray(rng.normal(size=broad.n_dof)) * 0.1
+
     def loss(lk, q):
         return jnp.sum(sj.forward_dynamics(lk, q, qd) ** 2)
 

@@ -165,6 +165,13 @@ def accelerations(
     return spd_solve(M, f)
 
 
+def _loop_terms(linkage: Linkage, data: LinkageData, rates: PointRates):
+    """The closed loops' ``(e, A, Adot qd)`` from the dynamics' kinematics."""
+    return constraint_terms_from_kinematics(
+        linkage, rates.g, rates.J, rates.eta, rates.etadot, rows=rows_of(data, rates)
+    )
+
+
 def is_constrained(linkage: Linkage) -> bool:
     """Whether the dynamics has constraint rows (prescribed joints or closed loops)."""
     return bool(len(linkage.prescribed[0]) or linkage.closed_loops)
@@ -242,14 +249,7 @@ def constrained_dynamics(
         rhs.append(qddp)
     rates = (full_point_rates if full else point_rates)(data, q, qd)
     if linkage.closed_loops:
-        e, A, bias = constraint_terms_from_kinematics(
-            linkage,
-            rates.g,
-            rates.J,
-            rates.eta,
-            rates.etadot,
-            rows=rows_of(data, rates),
-        )
+        e, A, bias = _loop_terms(linkage, data, rates)
         Tb = linkage.baumgarte_time
         rows.append(A)
         rhs.append(-bias - (2.0 / Tb) * (A @ qd) - e / Tb**2)
@@ -294,16 +294,7 @@ def consistent_velocities(
     qd0 = jnp.zeros_like(qd)
     rates = point_rates(data, q, qd0)  # at rest: zero twists and rates
     if linkage.closed_loops:  # A from the body Jacobians M needs anyway
-        rows.append(
-            constraint_terms_from_kinematics(
-                linkage,
-                rates.g,
-                rates.J,
-                rates.eta,
-                rates.etadot,
-                rows=rows_of(data, rates),
-            )[1]
-        )
+        rows.append(_loop_terms(linkage, data, rates)[1])
         rhs.append(jnp.zeros(linkage.n_constraints, q.dtype))
     G, b = jnp.concatenate(rows), jnp.concatenate(rhs)
     M = mass_and_force(linkage, data, t, q, qd0, rates=rates)[0]
