@@ -7,9 +7,9 @@ Five measurements, all in this process (persistent compilation cache off):
    floor with about 10, 100 and 1000 contact samples, against the same rod without
    contact (the rod's own points: 12). Compile time of each program.
 2. ``compile``: first call of ``simulate`` (0.2 s, ROS34PW2 and Tsit5) of the
-   dropped rod with and without its floor, and the XLA compile time of each
-   program (JAX's compile log): the integration program, and the contact report
-   (``Trajectory.contact``), a second program compiled in a thread beside it.
+   dropped rod with and without its floor, and the XLA compile time of its
+   integration program (JAX's compile log), which computes the contact report
+   (``Trajectory.contact``) too.
 3. ``w_tangent``: ROS34PW2 with W = (M, K, D) against W with the contacts' stiffness
    and damping (``Contact.tangent_in_w``), and Tsit5, on a block held by friction on
    a 15-degree plane and on a rod dropped onto a floor: steps and warm time.
@@ -135,9 +135,8 @@ class _CompileLog(logging.Handler):
 
 def compile_share():
     """First ``simulate`` call without and with the floor, for ROS34PW2 and Tsit5,
-    and the XLA compile seconds of its programs: the integration (``_simulate``)
-    and the contact report (``trajectory_contacts``, compiled in a thread beside
-    the integration's)."""
+    and the XLA compile seconds of its integration program (``_simulate``, which
+    also computes the contact report)."""
     out = {}
     jax.config.update("jax_log_compiles", True)
     logger = logging.getLogger("jax")
@@ -155,13 +154,11 @@ def compile_share():
             out[key] = dict(
                 first_call_s=first,
                 integration_compile_s=log.seconds.get("_simulate", float("nan")),
-                report_compile_s=log.seconds.get("trajectory_contacts", 0.0),
             )
         a, b = out[solver + "_without_contact"], out[solver + "_with_contact"]
         print(f"compile {solver}: first simulate {a['first_call_s']:.1f} s without "
               f"contact, {b['first_call_s']:.1f} s with; integration program "
-              f"{a['integration_compile_s']:.1f} -> {b['integration_compile_s']:.1f} s, "
-              f"contact report {b['report_compile_s']:.1f} s")  # fmt: skip
+              f"{a['integration_compile_s']:.1f} -> {b['integration_compile_s']:.1f} s")  # fmt: skip
     jax.config.update("jax_log_compiles", False)
     return out
 

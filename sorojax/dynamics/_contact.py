@@ -368,7 +368,7 @@ def _pair_list(linkage: Linkage):
 def pair_link_b(linkage: Linkage) -> np.ndarray:
     """Link B of every pair row of :class:`ContactState` (rod pairs, then tubes)."""
     out = [
-        np.full(len(_capacity(linkage.contact, e)[0]), e[2].link[0])
+        np.full(_capacity(linkage.contact, e), e[2].link[0])
         for e in _pair_list(linkage)
     ]
     for rod, body, _ in sphere_rod_pairs(linkage):
@@ -383,12 +383,11 @@ def _take(static, idx):
     return static[idx] if isinstance(idx, np.ndarray) else jnp.asarray(static)[idx]
 
 
-def _capacity(contact: Contact, entry) -> tuple[np.ndarray, int]:
-    """``(slots, K)``: the narrow phase's rows of one :func:`_pair_list` entry."""
+def _capacity(contact: Contact, entry) -> int:
+    """The narrow phase's rows of one :func:`_pair_list` entry (static)."""
     sa, ga, sb, gb, ia, _ = entry
     n_seg = len(ga.start) + (0 if sa is sb else len(gb.start))
-    k = pair_capacity(contact, len(ia), n_seg)
-    return np.arange(k), k
+    return pair_capacity(contact, len(ia), n_seg)
 
 
 def _candidates(contact: Contact, g, entry):
@@ -405,7 +404,7 @@ def _candidates(contact: Contact, g, entry):
     overlapping pairs than ``K`` is an ``overflow``.
     """
     sa, ga, sb, gb, ia, ib = entry
-    _, k = _capacity(contact, entry)
+    k = _capacity(contact, entry)
     if k >= len(ia):
         return ia, ib, None, jnp.zeros((), bool)
     gs = jax.lax.stop_gradient(g)
@@ -703,7 +702,7 @@ def _contact(linkage: Linkage, t, g, eta):
     pairs = _pair_list(linkage)
     if pairs:
         Wp, rp, overflow = _pair_terms(contact, pairs, g, eta, friction)
-        W = W + Wp
+        W = jnp.where(overflow, jnp.nan, W + Wp)
         for r in rp:
             rows.append(r[:7])
             labels.append((np.asarray(r[7]), np.full(len(r[7]), -1)))
@@ -713,7 +712,6 @@ def _contact(linkage: Linkage, t, g, eta):
         for r in ri:
             rows.append(r[:7])
             labels.append((np.asarray(r[7]), np.full(len(r[7]), -1)))
-    W = jnp.where(overflow, jnp.nan, W)
     return W, rows, labels, overflow
 
 
@@ -781,18 +779,14 @@ def state_from_data(linkage: Linkage, data, q, qd, t) -> ContactState:
     )
 
 
-@jit
-def trajectory_contacts(linkage: Linkage, t, q, qd, result):
+def contact_report(linkage: Linkage, data, t, q, qd, result):
     """Contact states at a trajectory's save times (leading axis: time).
 
     Also ``result``, turned into ``RESULTS.contact_too_deep`` where a successful
-    run went deeper than the smallest contact radius.
+    run went deeper than the smallest contact radius, and into
+    ``RESULTS.contact_overflow`` where the broad phase overflowed. Computed inside
+    the integration's program (``data``: its precomputed arrays).
     """
-    return contact_report(linkage, precompute(linkage), t, q, qd, result)
-
-
-def contact_report(linkage: Linkage, data, t, q, qd, result):
-    """:func:`trajectory_contacts` from precomputed data (inside other programs)."""
     states = jax.vmap(lambda t_, q_, qd_: state_from_data(linkage, data, q_, qd_, t_))(
         t, q, qd
     )

@@ -128,7 +128,7 @@ def force_from_point_rates(data: LinkageData, pr, W: Float[Array, "n_points 6"])
     The chain points' Jacobians map their wrenches and their leaves' (carried
     across the leaves' steps by :func:`leaf_wrenches`).
     """
-    if pr.J.shape[0] == W.shape[0]:  # every point's Jacobian (full_point_rates)
+    if pr.leaves is None:  # every point's Jacobian
         return jnp.einsum("pai,pa->i", pr.J, W)
     Wc, F = leaf_wrenches(data, chain_layout(data), pr.leaves, W)
     return jnp.einsum("pai,pa->i", pr.J, Wc) + F

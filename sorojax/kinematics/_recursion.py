@@ -563,8 +563,9 @@ class PointRates(NamedTuple):
     ``(n_core, 6, n_dof)`` and ``etadot`` ``(n_core, 6)`` at the chain's points
     (``chain_layout(data).core``: leaves carry no mass, and their wrenches reach the
     coordinates through their chain points, :func:`~sorojax.dynamics.
-    _wrench_recursion.leaf_wrenches`); ``leaves``: the leaves' steps (None without
-    leaves).
+    _wrench_recursion.leaf_wrenches`); ``leaves``: the leaves' steps, None when
+    ``J`` and ``etadot`` have a row per point (no leaves, or
+    :func:`full_point_rates`).
     """
 
     g: Array
@@ -576,7 +577,7 @@ class PointRates(NamedTuple):
 
 def rows_of(data: LinkageData, pr: PointRates) -> np.ndarray:
     """Each point's row in ``pr.J`` and ``pr.etadot`` (-1: none, a leaf's)."""
-    if pr.J.shape[0] == pr.g.shape[0]:  # a row per point
+    if pr.leaves is None:  # a row per point
         return np.arange(pr.g.shape[0])
     return chain_layout(data).row
 
