@@ -322,17 +322,21 @@ def mujoco_part(p, T, t1, n_seg, dts, impratio):
 
 
 # ----------------------------------------------------------------------- sorojax
-def sorojax_part(T, t1, solver="ros34pw2", rtol=1e-3, atol=1e-6):
-    """The first call of ``examples.grasp.grasp``; its outcome; a warm-run closure."""
+def sorojax_part(T, t1, solver="rosenbrock_euler", dt=2e-3, rtol=1e-3, atol=1e-6):
+    """The first call of ``examples.grasp.grasp``; its outcome; a warm-run closure.
+
+    ``dt`` None: adaptive steps at ``rtol``, ``atol``; else constant steps of ``dt``.
+    """
     lk = ex.gripper()
-    kw = dict(solver=solver, rtol=rtol, atol=atol)
+    kw = dict(solver=solver, dt=dt, rtol=rtol, atol=atol)
     t0 = time.perf_counter()
     tr, ball, palm = ex.grasp(lk, T, t1, **kw)
     first = time.perf_counter() - t0
     t = np.asarray(tr.t)
     k4 = np.searchsorted(t, T_LIFT - 1e-12)
     res = dict(
-        n_dof=int(lk.n_dof), solver=solver, rtol=rtol, atol=atol,
+        n_dof=int(lk.n_dof), solver=solver, dt=dt,
+        rtol=None if dt else rtol, atol=None if dt else atol,
         steps=int(tr.num_steps), rejected_steps=int(tr.num_rejected_steps),
         first_call_s=first,
         physics=dict(
@@ -343,6 +347,62 @@ def sorojax_part(T, t1, solver="ros34pw2", rtol=1e-3, atol=1e-6):
         ),
     )  # fmt: skip
     return res, lambda: ex.grasp(lk, T, t1, **kw)
+
+
+def batch_part(p, m, T_grid, t1, dt, repeats):
+    """``len(T_grid)`` grasps at once: one jit of a ``vmap`` of the constant-step
+    grasp (lockstep: every case takes the same steps) against ``mujoco.rollout`` of
+    the same tensions on all CPU threads. Warm medians; the compile apart."""
+    import equinox as eqx
+    import jax.numpy as jnp
+
+    import sorojax as sj
+
+    lk = ex.gripper()
+    cm = lk.layout.links[3].cm_point
+
+    def one(T):
+        u = eqx.Partial(ex.inputs, tension=T)
+        tr = sj.simulate(lk, t1, u=u, solver="rosenbrock_euler", dt0=dt, n_save=2,
+                         max_steps=int(np.ceil(t1 / dt)) + 1, throw=False)  # fmt: skip
+        ball = sj.forward_kinematics(lk, tr.q[-1])[cm, 2, 3]
+        return ball - ex.R_BALL, tr.result._value
+
+    run = jax.jit(jax.vmap(one), compiler_options=sj.compiler_options())
+    Ts = jnp.asarray(T_grid)
+    t0 = time.perf_counter()
+    lift, code = jax.block_until_ready(run(Ts))
+    first = time.perf_counter() - t0
+    sj_t = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        jax.block_until_ready(run(Ts))
+        sj_t.append(time.perf_counter() - t0)
+    n_thread = os.cpu_count() or 1
+    datas = [mujoco.MjData(m) for _ in range(n_thread)]
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    s0 = np.empty(mujoco.mj_stateSize(m, spec))
+    mujoco.mj_getState(m, datas[0], s0, spec)
+    U = np.stack([mj_controls(m, p, float(T), t1) for T in T_grid])
+    mj_t = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        state, _ = mujoco.rollout.rollout(m, datas, s0[None], U)
+        mj_t.append(time.perf_counter() - t0)
+    zb = state[:, -1, 1 + m.jnt_qposadr[m.body("ball").jntadr[0]] + 2]
+    n = len(T_grid)
+    med = statistics.median
+    return dict(
+        cases=n, tensions=[float(T) for T in T_grid], dt=dt,
+        sorojax_first_call_s=first, sorojax_warm_median_s=med(sj_t),
+        sorojax_cases_per_s=n / med(sj_t),
+        sorojax_failed=int(np.sum(np.asarray(code) != 0)),
+        sorojax_lift_mm=[1e3 * float(x) for x in lift],
+        mujoco_threads=n_thread, mujoco_rollout_median_s=med(mj_t),
+        mujoco_cases_per_s=n / med(mj_t),
+        mujoco_lift_mm=[1e3 * float(z - p["R_ball"]) for z in zb],
+        ratio_of_medians=med(sj_t) / med(mj_t),
+    )  # fmt: skip
 
 
 def interleaved(run_sj, m, U, repeats, n_mj=5):
@@ -374,7 +434,7 @@ def interleaved(run_sj, m, U, repeats, n_mj=5):
         roll, loop = roll + r1 + r2, loop + l1 + l2
         ratios.append(sj_t[-1] / statistics.median(r1 + r2))
         print(f"round {k + 1}: sorojax {sj_t[-1]:.2f} s, MuJoCo rollout "
-              f"{statistics.median(r1 + r2):.3f} s: {ratios[-1]:.0f}x")  # fmt: skip
+              f"{statistics.median(r1 + r2):.3f} s: {ratios[-1]:.2f}x")  # fmt: skip
     med = statistics.median
     return dict(
         sorojax_warm_s=sj_t, sorojax_warm_median_s=med(sj_t),
@@ -393,9 +453,13 @@ def main(argv=None):
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--t1", type=float, default=1.0)
     ap.add_argument("--tension", type=float, default=4.0)
-    ap.add_argument("--solver", default="ros34pw2")
+    ap.add_argument("--solver", default="rosenbrock_euler")
+    ap.add_argument("--dt", type=float, default=2e-3,
+                    help="constant step [s]; 0: adaptive steps at --rtol, --atol")
     ap.add_argument("--rtol", type=float, default=1e-3)
     ap.add_argument("--atol", type=float, default=1e-6)
+    ap.add_argument("--batch", type=int, default=64,
+                    help="grasps over tensions 3-5 N in one vmap (0: skip)")  # fmt: skip
     ap.add_argument("--segments", type=int, default=8)
     ap.add_argument("--impratio", type=float, default=10.0)
     ap.add_argument("--dts", type=float, nargs="+",
@@ -406,7 +470,13 @@ def main(argv=None):
     env = environment(mujoco_version=mujoco.__version__, cpu_model=_cpu_model())
     p = scene()
     mj, m, U = mujoco_part(p, a.tension, a.t1, a.segments, a.dts, a.impratio)
-    sj_, run_sj = sorojax_part(a.tension, a.t1, a.solver, a.rtol, a.atol)
+    dt = a.dt or None
+    # the accuracy reference: adaptive ROS34PW2 at rtol 1e-4 (one run)
+    ref, _ = sorojax_part(a.tension, a.t1, "ros34pw2", None, 1e-4, 1e-7)
+    sj_, run_sj = sorojax_part(a.tension, a.t1, a.solver, dt, a.rtol, a.atol)
+    sj_["deviation_from_reference_mm"] = {
+        k: sj_["physics"][k] - ref["physics"][k] for k in ("lift_mm", "slip_mm")
+    }
     tm = interleaved(run_sj, m, U, a.repeats)
     sj_ |= dict(
         warm_median_s=tm["sorojax_warm_median_s"], warm_min_s=tm["sorojax_warm_min_s"],
@@ -419,10 +489,15 @@ def main(argv=None):
         loop_median_s=tm["mujoco_loop_median_s"], loop_min_s=tm["mujoco_loop_min_s"],
         rollout_per_step_ms=1e3 * tm["mujoco_rollout_median_s"] / mj["steps"],
     )  # fmt: skip
+    batch = None
+    if a.batch:
+        batch = batch_part(p, m, np.linspace(3.0, 5.0, a.batch), a.t1, dt or 2e-3,
+                           a.repeats)  # fmt: skip
     res = dict(
         what=f"examples/grasp.py at T = {a.tension:g} N for {a.t1:g} s: sorojax "
         "against MuJoCo",
-        t1=a.t1, tension=a.tension, scene=p, sorojax=sj_, mujoco=mj, timing=tm,
+        t1=a.t1, tension=a.tension, scene=p, sorojax=sj_, sorojax_reference=ref,
+        mujoco=mj, timing=tm, batch=batch,
         environment=env | {"load_average_at_end": list(os.getloadavg())},
     )  # fmt: skip
     OUT.parent.mkdir(parents=True, exist_ok=True)
@@ -444,10 +519,13 @@ def _cpu_model():
 def _table(res):
     s, m, t1 = res["sorojax"], res["mujoco"], res["t1"]
     n_s, n_m = s["steps"], m["steps"]
+    how = f"dt {s['dt']:g} s" if s["dt"] else f"rtol {s['rtol']:g}"
+    r = res["sorojax_reference"]
     rows = [
-        (f"sorojax ({s['solver']}, rtol {s['rtol']:g})", n_s, s["warm_median_s"],
-         s["compile_s"],
+        (f"sorojax ({s['solver']}, {how})", n_s, s["warm_median_s"], s["compile_s"],
          s["physics"]),
+        ("sorojax reference (ros34pw2, 1e-4)", r["steps"], r["first_call_s"], None,
+         r["physics"]),
         (f"MuJoCo rollout (dt {m['timestep']:g} s)", n_m, m["rollout_median_s"],
          None, m["physics"]),
         (f"MuJoCo mj_step loop (dt {m['timestep']:g} s)", n_m, m["loop_median_s"],
@@ -460,9 +538,17 @@ def _table(res):
         print(f"{name:34s} {n:6d} {w:7.3f} {w / t1:9.3f} {1e3 * w / n:8.3f} {cs:>9s} "
               f"{ph['lift_mm']:8.2f} {ph['slip_mm']:8.2f}")  # fmt: skip
     tm = res["timing"]
-    print(f"sorojax warm / MuJoCo rollout: {tm['ratio_median_of_rounds']:.0f}x "
-          f"(median of the rounds' ratios; {min(tm['round_ratios']):.0f}-"
-          f"{max(tm['round_ratios']):.0f}x)")  # fmt: skip
+    print(f"sorojax warm / MuJoCo rollout: {tm['ratio_median_of_rounds']:.2f}x "
+          f"(median of the rounds' ratios; {min(tm['round_ratios']):.2f}-"
+          f"{max(tm['round_ratios']):.2f}x); the reference's row: its first call")
+    b = res["batch"]
+    if b:
+        print(f"{b['cases']} grasps: sorojax vmap {b['sorojax_cases_per_s']:.1f} "
+              f"cases/s ({b['sorojax_warm_median_s']:.2f} s, compile "
+              f"{b['sorojax_first_call_s'] - b['sorojax_warm_median_s']:.1f} s), "
+              f"MuJoCo rollout on {b['mujoco_threads']} threads "
+              f"{b['mujoco_cases_per_s']:.1f} cases/s: "
+              f"{b['ratio_of_medians']:.1f}x")  # fmt: skip
 
 
 if __name__ == "__main__":

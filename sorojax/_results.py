@@ -32,6 +32,10 @@ class RESULTS(eqx.Enumeration):
         "than the broad phase's capacity: give Contact(pair_capacity=...) a larger "
         "number (the default is 4 per segment)."
     )
+    unstable_step = (
+        "The state went non-finite at a constant step: the step is too large for "
+        "the scheme to stay stable. Give a smaller dt0 (or adaptive steps)."
+    )
 
 
 class StaticsSolution(eqx.Module):

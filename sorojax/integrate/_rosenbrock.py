@@ -205,6 +205,39 @@ def _dense_solver(Jac, c):
     return lambda r: lu_solve(fac, r)
 
 
+def _evaluate(terms, t, y, args):
+    """``(f, lin)``: the vector field and W's data at ``(t, y)``.
+
+    ``lin`` is ``(M, K, D)`` for a :class:`MechanicalTerm`, else the exact Jacobian
+    (forward-mode autodiff, one pass for both).
+    """
+    mech = _mechanical_term(terms)
+    if mech is not None:
+        term, direction = mech
+        return term.vf_and_matrices(t * direction, y, args)
+
+    def vf_twice(y_):
+        v = terms.vf(t, y_, args)
+        return v, v
+
+    Jac, f = jax.jacfwd(vf_twice, has_aux=True)(y)
+    return f, Jac
+
+
+def _check_state(solver: str, y0) -> None:
+    """Refuse a state that is not a one-dimensional array."""
+    if not eqx.is_array(y0) or y0.ndim != 1:
+        got = (
+            f"shape {y0.shape}"
+            if eqx.is_array(y0)
+            else f"a pytree {jax.tree_util.tree_structure(y0)}"
+        )
+        raise ValueError(
+            f"{solver} needs a one-dimensional array state; got {got} "
+            "(flatten the state, e.g. with jax.flatten_util.ravel_pytree)."
+        )
+
+
 class RosenbrockW(diffrax.AbstractAdaptiveSolver):
     """Rosenbrock-W solver (ROS34PW2 by default), adaptive, for stiff mechanics.
 
@@ -229,17 +262,7 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
         return self.tableau.order
 
     def _evaluate(self, terms, t, y, args):
-        mech = _mechanical_term(terms)
-        if mech is not None:
-            term, direction = mech
-            return term.vf_and_matrices(t * direction, y, args)
-
-        def vf_twice(y_):
-            v = terms.vf(t, y_, args)
-            return v, v
-
-        Jac, f = jax.jacfwd(vf_twice, has_aux=True)(y)  # one pass: f and its Jacobian
-        return f, Jac
+        return _evaluate(terms, t, y, args)
 
     def init(self, terms, t0, t1, y0, args):
         """The solver's state (None for a :class:`MechanicalTerm`).
@@ -247,16 +270,7 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
         A mechanical step evaluates its own start; any other term carries the
         first-same-as-last vector field and Jacobian.
         """
-        if not eqx.is_array(y0) or y0.ndim != 1:
-            got = (
-                f"shape {y0.shape}"
-                if eqx.is_array(y0)
-                else f"a pytree {jax.tree_util.tree_structure(y0)}"
-            )
-            raise ValueError(
-                f"RosenbrockW needs a one-dimensional array state; got {got} "
-                "(flatten the state, e.g. with jax.flatten_util.ravel_pytree)."
-            )
+        _check_state(type(self).__name__, y0)
         if _mechanical_term(terms) is not None:
             return None  # the mechanical step evaluates its own start
         return self._evaluate(terms, t0, y0, args)
@@ -350,6 +364,77 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
         k1 = jnp.asarray(np.array(tab.d), dt) @ us
         dense_info = dict(y0=y0, y1=y1, k0=f0 * h, k1=k1)
         return y1, y_error, dense_info, None, diffrax.RESULTS.successful
+
+    def func(self, terms, t0, y0, args):
+        """The vector field at ``(t0, y0)``."""
+        return terms.vf(t0, y0, args)
+
+
+class RosenbrockEuler(diffrax.AbstractSolver):
+    """One-stage linearly implicit (Rosenbrock) step at a constant step size.
+
+    ``(I - gamma h W) k = h f(t0 + gamma h, y0)``, ``y1 = y0 + k``: one evaluation
+    of the vector field and one linear solve per step, whatever the state (a batch
+    runs in lockstep). The time ``t0 + gamma h`` keeps the order for time-dependent
+    inputs (the one-stage method's W has no time column: ``f(t0 + gamma h) = f +
+    gamma h f_t + ...`` supplies the ``gamma h^2 f_t`` term); with ``gamma = 1``
+    inputs and prescribed motions are taken at the step's end, as backward Euler
+    takes them. With a :class:`MechanicalTerm` W is the linear stiff part of the
+    step's start, ``[[0, I], [-M^-1 K, -M^-1 D]]`` (K and D with the contacts'
+    tangent when the linkage puts it in W), and the solve is the
+    ``(M + c D + c^2 K)`` Cholesky system of :class:`RosenbrockW` (``c = gamma h``);
+    any other term gets the exact Jacobian (forward-mode autodiff, dense LU).
+
+    * ``gamma = 1`` (default, ``"rosenbrock_euler"``): the linearly implicit Euler
+      method. In ``y = (q, v)`` it reads ``(M + h D + h^2 K) dv = h (F - h K v)``,
+      ``v1 = v + dv``, ``q1 = q + h v1``: MuJoCo's ``implicitfast`` with the
+      elastic stiffness (and the contacts') implicit too. Order 1, L-stable: stiff
+      material, stiff contact and sticking friction do not bound the step, and
+      oscillations faster than ``1/h`` are damped (numerical dissipation).
+    * ``gamma = 1/2`` (``"rosenbrock_trapezoid"``): the linearised trapezoidal
+      rule, order 2 where W is the exact Jacobian (the linear elastic and damping
+      forces), A-stable and without numerical damping of the linear part: an
+      undamped rod keeps its energy, but fast modes that a step cannot resolve
+      ring instead of decaying.
+
+    Not adaptive (no error estimate): use it with ``adaptive=False`` and ``dt0``.
+    Dense output between steps is linear.
+
+    Attributes:
+        gamma: the implicitness ``(0, 1]``.
+    """
+
+    gamma: float = eqx.field(static=True, default=1.0)
+    term_structure: ClassVar = diffrax.AbstractTerm
+    interpolation_cls: ClassVar = diffrax.LocalLinearInterpolation
+
+    def __check_init__(self):
+        if not 0.0 < self.gamma <= 1.0:
+            raise ValueError(
+                f"RosenbrockEuler(gamma={self.gamma!r}): give 0 < gamma <= 1 (1: "
+                "linearly implicit Euler, 1/2: linearised trapezoidal rule)."
+            )
+
+    def order(self, terms):
+        """2 for ``gamma = 1/2`` (with W the exact Jacobian), else 1."""
+        return 2 if self.gamma == 0.5 else 1
+
+    def init(self, terms, t0, t1, y0, args):
+        """No state: each step evaluates its own start."""
+        _check_state(type(self).__name__, y0)
+
+    def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
+        """One step (see the class docstring)."""
+        h = t1 - t0
+        c = h * self.gamma
+        f, lin = _evaluate(terms, t0 + c, y0, args)
+        if _mechanical_term(terms) is not None:
+            x = _mechanical_solve(_mechanical_factor(lin, c), c, f)
+        else:
+            x = _dense_solver(lin, c)(f)
+        y1 = y0 + x / self.gamma  # k = h (I - c W)^-1 f = x / gamma
+        dense_info = dict(y0=y0, y1=y1)
+        return y1, None, dense_info, None, diffrax.RESULTS.successful
 
     def func(self, terms, t0, y0, args):
         """The vector field at ``(t0, y0)``."""

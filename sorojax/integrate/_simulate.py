@@ -50,7 +50,7 @@ from ..model._checks import check_finite, check_tolerances, is_concrete
 from ..model._link import SoftLink
 from ..model._linkage import Linkage
 from ..model._precompute import precompute
-from ._rosenbrock import MechanicalTerm, RosenbrockW
+from ._rosenbrock import MechanicalTerm, RosenbrockEuler, RosenbrockW
 from ._trajectory import Trajectory
 
 try:  # diffrax's marker for "take the tolerance from the step-size controller"
@@ -67,6 +67,8 @@ SOLVERS: dict[str, Callable[[], diffrax.AbstractSolver]] = {
     "kvaerno5": diffrax.Kvaerno5,
     "implicit_euler": diffrax.ImplicitEuler,
     "ros34pw2": RosenbrockW,
+    "rosenbrock_euler": RosenbrockEuler,
+    "rosenbrock_trapezoid": functools.partial(RosenbrockEuler, gamma=0.5),
 }
 """Solvers selectable by name; any ``diffrax.AbstractSolver`` instance is also taken."""
 
@@ -346,13 +348,20 @@ def _vector_field(
     return MechanicalTerm(_Field(treedef, static)), arrays
 
 
-def _result_code(sol: diffrax.Solution) -> RESULTS:
-    finite = jnp.all(jnp.isfinite(sol.ys[-1]))
+def _result_code(sol: diffrax.Solution, constant_step: bool) -> RESULTS:
+    """sorojax's result code of a diffrax solution.
+
+    A successful solve whose saved states are not all finite failed: at a constant
+    step it is ``unstable_step`` (the step is too large for the scheme), with
+    adaptive steps ``nonlinear_divergence``.
+    """
+    finite = jnp.all(jnp.isfinite(sol.ys))
     ok = sol.result == diffrax.RESULTS.successful
     steps = sol.result == diffrax.RESULTS.max_steps_reached
     code = RESULTS.where(steps, RESULTS.max_steps_reached, RESULTS.failed)
     code = RESULTS.where(ok, RESULTS.successful, code)
-    return RESULTS.where(ok & ~finite, RESULTS.nonlinear_divergence, code)
+    bad = RESULTS.unstable_step if constant_step else RESULTS.nonlinear_divergence
+    return RESULTS.where(ok & ~finite, bad, code)
 
 
 @contextlib.contextmanager
@@ -441,7 +450,7 @@ def _simulate(
             linkage, data, sol.ts, sol.ys, u_fn, u_const, generalized_force
         )
         extra = {"u": u, "efforts": efforts, "lam": lam}
-    result = _result_code(sol)
+    result = _result_code(sol, isinstance(controller, diffrax.ConstantStepSize))
     if linkage.contact is not None:  # the contact report, in the same program
         extra["contact"], result = contact_report(
             linkage, data, sol.ts, sol.ys[:, :n], sol.ys[:, n:], result
@@ -503,7 +512,7 @@ def simulate(
     rtol: float = 1e-3,
     atol: float = 1e-5,
     dt0: float | None = None,
-    adaptive: bool = True,
+    adaptive: bool | None = None,
     max_steps: int = 16384,
     generalized_force: GeneralizedForce | None = None,
     u: ArrayLike | InputFunction | None = None,
@@ -533,8 +542,12 @@ def simulate(
             name an explicit solver such as ``"dopri8"``, for reference solutions).
         atol: absolute tolerance (states are ``q`` [-, or m / rad for joints] and
             ``qd`` [1/s]).
-        dt0: initial step [s]; chosen automatically when adaptive and ``None``.
-        adaptive: adaptive steps (PID controller) or, if ``False``, constant ``dt0``.
+        dt0: initial step [s]; chosen automatically when adaptive and ``None``;
+            the step of a constant-step run.
+        adaptive: adaptive steps (PID controller) or, if ``False``, constant steps
+            of ``dt0``. Default ``None``: constant steps for the constant-step
+            solvers (``"rosenbrock_euler"``, ``"rosenbrock_trapezoid"``), adaptive
+            ones for the others.
         max_steps: most steps before giving up (``RESULTS.max_steps_reached``).
         generalized_force: optional ``tau(t, q, qd) -> (n_dof,)`` generalised
             actuation force (pure JAX), added to the right-hand side.
@@ -659,6 +672,47 @@ def _check_span(t0, t1, ts) -> None:
             )
 
 
+def _is_auto(solver) -> bool:
+    return isinstance(solver, str) and solver.lower() == "auto"
+
+
+def _adaptive(name, solver, adaptive: bool | None) -> bool:
+    """Adaptive steps or not: ``adaptive``, or by default whether the solver can.
+
+    ``solver`` is None for ``"auto"`` (an adaptive solver). A solver without an
+    error estimate (not a ``diffrax.AbstractAdaptiveSolver``) asked for adaptive
+    steps is refused.
+    """
+    can = solver is None or isinstance(solver, diffrax.AbstractAdaptiveSolver)
+    if adaptive is None:
+        return can
+    if adaptive and not can:
+        raise ValueError(
+            f"solver = {name!r} takes constant steps (it has no error estimate for "
+            "step control) but adaptive = True: leave adaptive at None (or give "
+            "False) and give the step as dt0, or choose an adaptive solver such as "
+            "'ros34pw2'."
+        )
+    return bool(adaptive)
+
+
+def _check_constant_steps(t0, t1, dt0, max_steps) -> None:
+    """Refuse a constant step that cannot reach ``t1`` within ``max_steps``."""
+    if dt0 is None:
+        raise ValueError(
+            "adaptive = False (or a constant-step solver) needs a step: dt0 = None; "
+            "give dt0 (the constant step, in s)."
+        )
+    if all(is_concrete(x) for x in (t0, t1, dt0)):
+        need = math.ceil((float(t1) - float(t0)) / float(dt0) - 1e-9)
+        if need > max_steps:
+            raise ValueError(
+                f"dt0 = {float(dt0)!r} takes {need} constant steps from t0 = "
+                f"{float(t0)!r} to t1 = {float(t1)!r}, more than max_steps = "
+                f"{max_steps}: give max_steps >= {need} or a larger dt0."
+            )
+
+
 def _check_steps(rtol, atol, dt0, adaptive) -> None:
     """Refuse step-control settings that cannot work (concrete values only)."""
     if adaptive:
@@ -696,6 +750,8 @@ def _plan(
     check_finite("q0", q0, "give finite initial coordinates (default zeros)")
     check_finite("qd0", qd0, "give finite initial velocities (default zeros)")
     _check_span(t0, t1, ts)
+    solver_ = _make_solver(solver) if not _is_auto(solver) else None
+    adaptive = _adaptive(solver, solver_, adaptive)
     _check_steps(rtol, atol, dt0, adaptive)
     t0_, t1_ = jnp.asarray(t0, dtype=dtype), jnp.asarray(t1, dtype=dtype)
     u_fn, u_const = _split_inputs(linkage, u, dtype)
@@ -721,7 +777,10 @@ def _plan(
                 )
     if max_steps < 1:
         raise ValueError(f"max_steps = {max_steps}; give a positive integer.")
-    solver_ = _make_solver(_choose_solver(solver, linkage, q0, t0_, t1_, rtol))
+    if not adaptive:
+        _check_constant_steps(t0, t1, dt0, max_steps)
+    if solver_ is None:
+        solver_ = _make_solver(_choose_solver(solver, linkage, q0, t0_, t1_, rtol))
     if adaptive:
         if isinstance(solver_, diffrax.AbstractImplicitSolver | RosenbrockW):
             # PI control: the plain I controller makes implicit solvers on damped
@@ -733,11 +792,6 @@ def _plan(
         else:
             controller = diffrax.PIDController(rtol=rtol, atol=atol)
     else:
-        if dt0 is None:
-            raise ValueError(
-                "adaptive=False needs a step: dt0 = None; give dt0 (the constant "
-                "step, in s)."
-            )
         controller = diffrax.ConstantStepSize()
         solver_ = _root_finder_tolerances(solver_, rtol, atol)
     dt0_ = None if dt0 is None else jnp.asarray(dt0, dtype=dtype)
