@@ -72,7 +72,9 @@ SPEED_TARGET_S = 0.15
 EXPLICIT = ("tsit5", "dopri5", "dopri8")
 IMPLICIT = ("kvaerno3", "kvaerno5", "implicit_euler")
 ROSENBROCK = ("ros34pw2",)  # linearly implicit (W = stiff part M, K, D): cheap steps
-SOLVERS = EXPLICIT + IMPLICIT + ROSENBROCK
+CONSTANT = ("rosenbrock_euler",)  # linearly implicit Euler: constant steps only
+SOLVERS = EXPLICIT + IMPLICIT + ROSENBROCK + CONSTANT
+WP_DTS = (1e-2, 3e-3, 1e-3, 3e-4, 1e-4)  # the constant-step solvers' steps [s]
 STYLE = {  # colour, marker
     "tsit5": ("tab:blue", "o"),
     "dopri5": ("tab:orange", "s"),
@@ -81,6 +83,7 @@ STYLE = {  # colour, marker
     "kvaerno5": ("tab:purple", "v"),
     "implicit_euler": ("tab:brown", "P"),
     "ros34pw2": ("black", "*"),
+    "rosenbrock_euler": ("tab:gray", "X"),
 }
 
 
@@ -96,6 +99,21 @@ def environment():
 
 def block(x):
     return jax.block_until_ready(x)
+
+
+ONLY: tuple[str, ...] | None = None  # --solvers: run these, keep the others' rows
+
+
+def run_solvers():
+    """The solvers this run measures (all, or those of ``--solvers``)."""
+    return [s for s in SOLVERS if ONLY is None or s in ONLY]
+
+
+def merged_rows(new_rows, old_part):
+    """With ``--solvers``: the new rows plus the previous run's rows of the others."""
+    if ONLY is None or not old_part:
+        return new_rows
+    return [r for r in old_part.get("rows", []) if r["solver"] not in ONLY] + new_rows
 
 
 def timed(fn, *, min_repeats=1, max_repeats=5, budget_s=1.0):
@@ -118,6 +136,7 @@ def result_name(result) -> str:
         "successful",
         "max_steps_reached",
         "nonlinear_divergence",
+        "unstable_step",
         "failed",
     ):
         if bool(result == getattr(sj.RESULTS, name)):
@@ -341,7 +360,7 @@ def case_orders(st, case, solver=None):
 
 
 def bench_wp(quick, implicit_orders, orders=None):
-    st = wp_settings(quick, implicit_orders)
+    st = wp_settings(quick, implicit_orders) | {"quick": quick}
     if orders:
         st["orders"] = tuple(orders)
     t1 = st["t1"]
@@ -371,9 +390,13 @@ def bench_wp(quick, implicit_orders, orders=None):
 
     rows = []
     for case in WP_CASES:
-        for solver in SOLVERS:
+        for solver in run_solvers():
             for order in case_orders(st, case, solver):
                 rod, q0 = case_model(case, order)
+                if solver in CONSTANT:
+                    rows += wp_constant(rod, q0, refs[case, order], case, solver,
+                                        order, t1, st)  # fmt: skip
+                    continue
                 rtols = st["rtols"][solver]
                 first = TRACKER.warm(
                     (solver, order, "pid"),
@@ -452,6 +475,43 @@ def bench_wp(quick, implicit_orders, orders=None):
         "basis_top_order": top,
         "rows": rows,
     }
+
+
+def wp_constant(rod, q0, ref, case, solver, order, t1, st):
+    """Work-precision rows of a constant-step solver: one per step of ``WP_DTS``."""
+    rows, first, stop = [], None, None
+    dts = WP_DTS[::2] if st.get("quick") else WP_DTS
+    for h in dts:
+        n = int(math.ceil(t1 / h - 1e-9))
+        fn = partial(run_fixed, rod, t1, q0, solver, h, max(n, MAX_STEPS))
+        first = TRACKER.warm((solver, order, "const", MAX_STEPS), fn)
+        row = {
+            "case": case, "solver": solver, "order": order, "n_dof": rod.n_dof,
+            "eta": WP_CASES[case][0], "t1": t1, "rtol": None, "atol": None, "dt": h,
+            "first_call_s": first,
+        }  # fmt: skip
+        if stop is not None:
+            rows.append(row | {"status": stop})
+            continue
+        tr, med, best, nrep = timed(fn, max_repeats=3, budget_s=1.0)
+        name = result_name(tr.result)
+        err = (
+            tip_error(tr.tip_positions(rod), ref, L_SOFT)
+            if name == "successful"
+            else math.nan
+        )
+        rows.append(row | dict(status=name, error=err, warm_median_s=med,
+                               warm_min_s=best, repeats=nrep,
+                               steps=int(tr.num_steps), rejected=0))  # fmt: skip
+        print(
+            f"    {case:<9} {solver:<14} order {order} dt {h:.0e}:"
+            f" err {fmt_e(err):>7}  {med:7.3f} s  {int(tr.num_steps):6d} steps"
+            f" {'' if name == 'successful' else name}",
+            flush=True,
+        )
+        if med > st["budget_s"]:
+            stop = f"skipped (time budget {st['budget_s']} s)"
+    return rows
 
 
 def wp_best(rows, case, order, level):
@@ -605,7 +665,9 @@ def print_wp(res):
         for level in (1e-3, 1e-4, 1e-6):
             best = wp_best(rows, case, 3, level)
             line = ", ".join(
-                f"{s} {b['warm_median_s'] * 1e3:.0f} ms (rtol {b['rtol']:.0e})"
+                f"{s} {b['warm_median_s'] * 1e3:.0f} ms ("
+                + (f"dt {b['dt']:.0e}" if b.get("dt") else f"rtol {b['rtol']:.0e}")
+                + ")"
                 for s, b in sorted(best.items(), key=lambda kv: kv[1]["warm_median_s"])
             )
             print(f"    {case}, order 3, error <= {level:g}: {line or '-'}")
@@ -662,7 +724,7 @@ def start_strain(rod):
 
 def classify(tr, rod, length):
     name = result_name(tr.result)
-    if name == "nonlinear_divergence":
+    if name in ("nonlinear_divergence", "unstable_step"):
         return "diverged", name
     if name == "max_steps_reached":
         return "max steps", name
@@ -756,7 +818,7 @@ def bench_stability(quick):
     )
 
     rows = []
-    for solver in SOLVERS:
+    for solver in run_solvers():
         # Compile both controllers once (the rods without contact share the
         # programs; the rod over the floor has its own), outside the timed cells.
         for key, warm_rod in (
@@ -768,16 +830,21 @@ def bench_stability(quick):
                 (solver, 3, "const", max_fixed, key),
                 partial(run_fixed, warm_rod, 2e-3, q0, solver, 1e-3, max_fixed),
             )
-            TRACKER.warm(
-                (solver, 3, "pid", STAB_MAX_STEPS, key),
-                partial(run_adaptive, warm_rod, 1e-3, q0, solver, 1e-3, STAB_MAX_STEPS),
-            )
+            if solver not in CONSTANT:
+                TRACKER.warm(
+                    (solver, 3, "pid", STAB_MAX_STEPS, key),
+                    partial(
+                        run_adaptive, warm_rod, 1e-3, q0, solver, 1e-3, STAB_MAX_STEPS
+                    ),
+                )
             if warm_rod.contact is not None:
                 energy_gain(run_fixed(warm_rod, 2e-3, q0, solver, 1e-3, max_fixed),
                             warm_rod)  # fmt: skip
         for rname, (rod, length, T) in rods.items():
             q0 = initial_q(rod, start_strain(rod))
-            cells = [("h", h) for h in STEPS] + [("rtol", r) for r in ADAPT_RTOLS]
+            cells = [("h", h) for h in STEPS]
+            if solver not in CONSTANT:  # constant-step solvers: no adaptive cells
+                cells += [("rtol", r) for r in ADAPT_RTOLS]
             for kind, val in cells:
                 if kind == "h":
                     span = min(T, n_fixed * val)
@@ -921,7 +988,10 @@ def plot_stability(res, path):
 def speed_choices(wp_rows, level=1e-4, slack=1.5):
     """Default solver + the two fastest solvers at error <= ~level (damped, order 3)."""
     best = wp_best(wp_rows, "damped", 3, level * slack) if wp_rows else {}
-    ranked = sorted(best.values(), key=lambda r: r["warm_median_s"])
+    ranked = sorted(
+        (r for r in best.values() if r["solver"] not in CONSTANT),
+        key=lambda r: r["warm_median_s"],
+    )
     chosen = [(r["solver"], r["rtol"], "WP best") for r in ranked[:2]]
     default = sj.integrate.DEFAULT_SOLVER
     if default in best:
@@ -1290,7 +1360,18 @@ def main(argv=None):
         help="basis orders of the explicit solvers in the WP sweep (default: 3 with"
         " --quick, 1 2 3 4 without)",
     )
+    ap.add_argument(
+        "--solvers",
+        nargs="+",
+        choices=SOLVERS,
+        default=None,
+        help="measure only these solvers in the wp and stability parts; the other "
+        "solvers' rows are kept from the previous results (their environment is "
+        "that run's)",
+    )
     args = ap.parse_args(argv)
+    global ONLY
+    ONLY = tuple(args.solvers) if args.solvers else None
     parts = args.part or ["wp", "stability", "speed", "scaling"]
     RESULTS_DIR.mkdir(parents=True, exist_ok=True)
     jpath = RESULTS_DIR / "dynamics.json"
@@ -1316,6 +1397,8 @@ def main(argv=None):
         print("\n[1] Work-precision, free-fall rod", flush=True)
         t0 = time.perf_counter()
         res = bench_wp(args.quick, args.implicit_orders, args.orders)
+        res["rows"] = merged_rows(res["rows"], out.get("wp"))
+        res["solvers_measured"] = run_solvers()
         write_csv(RESULTS_DIR / "dynamics_wp.csv", res["rows"])
         write_csv(RESULTS_DIR / "dynamics_wp_basis.csv", res["basis_error"])
         plot_wp(
@@ -1329,6 +1412,8 @@ def main(argv=None):
         print("\n[2] Stability: soft and steel rods", flush=True)
         t0 = time.perf_counter()
         res = bench_stability(args.quick)
+        res["rows"] = merged_rows(res["rows"], out.get("stability"))
+        res["solvers_measured"] = run_solvers()
         write_csv(RESULTS_DIR / "dynamics_stability.csv", res["rows"])
         plot_stability(res, RESULTS_DIR / "dynamics_stability.png")
         record("stability", res, time.perf_counter() - t0)

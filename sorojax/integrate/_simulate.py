@@ -263,12 +263,16 @@ def _input_function(u_fn, u_const) -> InputFunction:
 
 
 @eqx.filter_jit
-def _rates(linkage: Linkage, data, t, y, u_fn, u_const, generalized_force):
+def _rates(
+    linkage: Linkage, data, t, y, u_fn, u_const, generalized_force, stiff=True
+):
     """``(qd, qdd)``, the stiff part ``(M, K, D)`` and the constrained state.
 
     ``K`` and ``D`` are the model's constant ones, plus the contacts' tangent
     stiffness and damping when the linkage's contact puts them in W
-    (``Contact.tangent_in_w``); the constrained state is None without inputs.
+    (``Contact.tangent_in_w``) and ``stiff`` is True (False: the model's own K
+    and D, for callers that need the state only); the constrained state is None
+    without inputs.
 
     Jitted so that the right-hand side is traced once for the compiled program:
     diffrax calls the vector field from several places (first stage, the stage loop)
@@ -278,7 +282,7 @@ def _rates(linkage: Linkage, data, t, y, u_fn, u_const, generalized_force):
     """
     n = y.shape[0] // 2
     q, qd = y[:n], y[n:]
-    tangent = linkage.contact is not None and linkage.contact.tangent_in_w
+    tangent = stiff and linkage.contact is not None and linkage.contact.tangent_in_w
     if not _needs_inputs(linkage):
         # with the contacts' tangent every point's Jacobian (one pass serves both)
         rates = (full_point_rates if tangent else point_rates)(data, q, qd)
@@ -474,7 +478,7 @@ def _inputs_at(linkage, data, ts, ys, u_fn, u_const, generalized_force):
     # compiles ~20% slower; the save points are few).
     st = jax.lax.map(
         lambda ty: _rates(
-            linkage, data, ty[0], ty[1], u_fn, u_const, generalized_force
+            linkage, data, ty[0], ty[1], u_fn, u_const, generalized_force, False
         )[2],
         (ts, ys),
     )
