@@ -156,6 +156,8 @@ def test_constant_step_settings_refused_or_reported():
         sj.simulate(lk, 0.1, solver="rosenbrock_euler", dt0=1e-3, adaptive=True)
     with pytest.raises(ValueError, match="give dt0"):
         sj.simulate(lk, 0.1, solver="rosenbrock_euler")
+    with pytest.raises(ValueError, match="takes constant steps: give dt"):
+        sj.Environment(lk, period=0.01, solver="rosenbrock_euler")
     with pytest.raises(ValueError, match=r"takes 100 constant steps.*max_steps = 50"):
         sj.simulate(lk, 0.1, solver="rosenbrock_euler", dt0=1e-3, max_steps=50)
     # a step far beyond the explicit bound of the contact (omega ~ 316 rad/s): the

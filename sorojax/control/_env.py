@@ -138,6 +138,14 @@ class Environment(eqx.Module):
                 "Environment.solver = 'auto': name the solver (e.g. 'ros34pw2' or "
                 "'tsit5'); 'auto' would choose per call from the state."
             )
+        if self.dt is None and not isinstance(
+            _make_solver(self.solver), diffrax.AbstractAdaptiveSolver
+        ):
+            raise ValueError(
+                f"Environment.solver = {self.solver!r} takes constant steps: give dt "
+                f"(a step that divides the period, {self.period} s, e.g. dt = "
+                "period), or an adaptive solver such as 'ros34pw2'."
+            )
         if self.dt is not None:
             n = self.period / self.dt
             if not self.dt > 0 or abs(n - round(n)) > 1e-9 * n:

@@ -539,7 +539,12 @@ def simulate(
             linearised model at ``q0`` has fast damped modes, else Tsit5, or Kvaerno5
             when very stiff; see ``DEFAULT_SOLVER``; under an outer jit/vmap/grad
             with traced parameters ``"auto"`` decides from the structure), a name in
-            ``sorojax.integrate.SOLVERS`` or any ``diffrax.AbstractSolver``.
+            ``sorojax.integrate.SOLVERS`` or any ``diffrax.AbstractSolver``. The
+            constant-step ``"rosenbrock_euler"`` (linearly implicit Euler,
+            :class:`~sorojax.integrate.RosenbrockEuler`: one evaluation and one
+            solve per step with ROS34PW2's W, the contacts' tangent included) is
+            the fast choice for contact-rich scenes, batches and learning loops
+            at first-order accuracy: give ``dt0``.
         rtol: relative tolerance of the adaptive step-size controller (default 1e-3,
             as MATLAB's ode15s in SoRoSim: on the free-fall rod the tip error is then
             ~5e-5 L, far below the error of a cubic strain basis; tighten it, and
