@@ -11,8 +11,10 @@ the rod forward, by an amount that depends on the amplitude A and the phase lag 
 
 The script:
 
-1. simulates one gait (ROS34PW2 with the contacts' stiffness and friction in W,
-   constant steps, so that the distance is a smooth function of A and phi);
+1. simulates one gait (constant 0.5 ms steps of linearly implicit Euler with the
+   contacts' stiffness and friction in W, so that the distance is a smooth function
+   of A and phi; at the ascent's start it differs from ROS34PW2 at 1 ms steps by
+   2.5 % and takes a fifth of the time);
 2. maps distance per cycle over a grid of (A, phi), all rollouts in one ``vmap``;
 3. climbs the same map by gradient ascent with forward-mode derivatives through
    ``simulate`` (``jax.jacfwd``, ``diffrax.ForwardMode()``), the step bounded by a
@@ -46,7 +48,7 @@ G = 9.81
 L, R, RHO, E = 0.3, 0.01, 1000.0, 1e6
 FREQ = 2.0  # gait frequency [Hz]
 A_MAX = 0.05  # largest amplitude of the grid [N m / m]
-DT = 1e-3  # constant step [s]
+DT = 5e-4  # constant step [s]
 
 
 def bending(t, q, qd, kin, u, amplitude, phase, front):
@@ -100,7 +102,7 @@ def distance_per_cycle(params, cycles, n_save=2):
     lk = crawler(params[0], params[1])
     T = cycles / FREQ
     tr = sj.simulate(
-        lk, T, solver="ros34pw2", dt0=DT, adaptive=False, n_save=n_save,
+        lk, T, solver="rosenbrock_euler", dt0=DT, n_save=n_save,
         adjoint=diffrax.ForwardMode(), throw=False,
     )  # fmt: skip
     return (centre_x(lk, tr.q[-1]) - centre_x(lk, tr.q[0])) / cycles, tr
@@ -128,7 +130,9 @@ def main(argv=None):
     phis = np.linspace(0.0, 2 * np.pi, a.grid, endpoint=False)
     grid = jnp.asarray([(A, ph) for A in As for ph in phis])
     t0 = time.perf_counter()
-    values = np.asarray(jax.jit(jax.vmap(dpc))(grid)).reshape(a.grid, a.grid)
+    opts = sj.compiler_options()  # sorojax's XLA options for these programs too
+    values = np.asarray(jax.jit(jax.vmap(dpc), compiler_options=opts)(grid))
+    values = values.reshape(a.grid, a.grid)
     t_grid = time.perf_counter() - t0
     i, j = np.unravel_index(np.nanargmax(values), values.shape)
     best_grid = (As[i], phis[j], values[i, j])
@@ -139,8 +143,9 @@ def main(argv=None):
 
     # 3. gradient ascent (forward mode: two parameters): steps of a trust radius
     # in the scaled variables (A / A_max, phi / pi), along the scaled gradient
-    f = jax.jit(dpc)
-    value_and_grad = jax.jit(lambda x: (dpc(x), jax.jacfwd(dpc)(x)))
+    f = jax.jit(dpc, compiler_options=opts)
+    value_and_grad = jax.jit(lambda x: (dpc(x), jax.jacfwd(dpc)(x)),
+                             compiler_options=opts)  # fmt: skip
     x = jnp.asarray([0.3 * A_MAX, 0.5])
     scale = np.array([A_MAX, np.pi])
     lower, upper = np.array([0.02 * A_MAX, -np.inf]), np.array([A_MAX, np.inf])
