@@ -612,6 +612,20 @@ CASES = [
         ValueError,
         [r"gx = 0", r"total=True"],
     ),
+    (
+        "strain-uncarried-mode",  # bending about y and z only: no torsion to fit
+        lambda: sj.strain_coordinates(_rod(), [0.5, 1.0, 0, 0, 0, 0]),
+        ValueError,
+        [r"torsion kx = 0\.5", r"does not carry", r"add their modes"],
+    ),
+    (
+        "strain-uncarried-mode-function",
+        lambda: sj.strain_coordinates(
+            _rod(), lambda s: jnp.stack([0.0, 1.0, 0.0, 0.0, 0.2 * s, 0.0])
+        ),
+        ValueError,
+        [r"shear gy = 0\.0", r"does not carry"],
+    ),
     # contact
     (
         "contact-law-stiffness",
@@ -625,6 +639,30 @@ CASES = [
         lambda: sj.Plane(normal=(0.0, 0.0, 0.0)),
         ValueError,
         [r"normal", r"0"],
+    ),
+    (
+        "capsule-end-nan",
+        lambda: sj.Capsule(0.01, (0.0, 0.0, 0.0), (0.0, float("nan"), 1.0)),
+        ValueError,
+        [r"Capsule\.end", r"nan", r"not finite"],
+    ),
+    (
+        "capsule-zero-axis",
+        lambda: sj.Capsule(0.01, (0.0, 0.0, 0.1), (0.0, 0.0, 0.1)),
+        ValueError,
+        [r"Capsule\.start = Capsule\.end", r"Sphere"],
+    ),
+    (
+        "sphere-centre-inf",
+        lambda: sj.Sphere(0.1, (0.0, float("inf"), 0.0)),
+        ValueError,
+        [r"Sphere\.centre", r"inf"],
+    ),
+    (
+        "plane-point-nan",
+        lambda: sj.Plane(point=(float("nan"), 0.0, 0.0)),
+        ValueError,
+        [r"Plane\.point", r"nan"],
     ),
 ]
 

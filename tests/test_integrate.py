@@ -129,7 +129,7 @@ def test_explicit_divergence_is_reported(rod):
     traj = sj.simulate(
         rod, 100.0, q0, solver="tsit5", adaptive=False, dt0=0.2, throw=False, n_save=3
     )
-    assert traj.result == sj.RESULTS.nonlinear_divergence
+    assert traj.result == sj.RESULTS.unstable_step
 
 
 def test_vmap_over_initial_conditions_equals_loop(rod):

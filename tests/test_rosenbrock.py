@@ -169,7 +169,7 @@ def test_damped_rod_settles_on_statics_with_steps_far_beyond_explicit_limits():
     assert h * lam > 30 * 2.8, f"|lambda| = {lam:.0f} 1/s is not stiff enough"
     kw = dict(adaptive=False, dt0=h, throw=False, n_save=31)
     explicit = sj.simulate(lk, 3.0, q0, solver="tsit5", **kw)
-    assert explicit.result == sj.RESULTS.nonlinear_divergence
+    assert explicit.result == sj.RESULTS.unstable_step
     tr = sj.simulate(lk, 3.0, q0, solver="ros34pw2", **kw)
     assert tr.result == sj.RESULTS.successful
     rest = sj.solve_statics(lk)

@@ -263,16 +263,12 @@ def _input_function(u_fn, u_const) -> InputFunction:
 
 
 @eqx.filter_jit
-def _rates(
-    linkage: Linkage, data, t, y, u_fn, u_const, generalized_force, stiff=True
-):
+def _rates(linkage: Linkage, data, t, y, u_fn, u_const, generalized_force):
     """``(qd, qdd)``, the stiff part ``(M, K, D)`` and the constrained state.
 
     ``K`` and ``D`` are the model's constant ones, plus the contacts' tangent
     stiffness and damping when the linkage's contact puts them in W
-    (``Contact.tangent_in_w``) and ``stiff`` is True (False: the model's own K
-    and D, for callers that need the state only); the constrained state is None
-    without inputs.
+    (``Contact.tangent_in_w``); the constrained state is None without inputs.
 
     Jitted so that the right-hand side is traced once for the compiled program:
     diffrax calls the vector field from several places (first stage, the stage loop)
@@ -282,7 +278,7 @@ def _rates(
     """
     n = y.shape[0] // 2
     q, qd = y[:n], y[n:]
-    tangent = stiff and linkage.contact is not None and linkage.contact.tangent_in_w
+    tangent = linkage.contact is not None and linkage.contact.tangent_in_w
     if not _needs_inputs(linkage):
         # with the contacts' tangent every point's Jacobian (one pass serves both)
         rates = (full_point_rates if tangent else point_rates)(data, q, qd)
@@ -478,7 +474,7 @@ def _inputs_at(linkage, data, ts, ys, u_fn, u_const, generalized_force):
     # compiles ~20% slower; the save points are few).
     st = jax.lax.map(
         lambda ty: _rates(
-            linkage, data, ty[0], ty[1], u_fn, u_const, generalized_force, False
+            linkage, data, ty[0], ty[1], u_fn, u_const, generalized_force
         )[2],
         (ts, ys),
     )
@@ -709,8 +705,8 @@ def _check_constant_steps(t0, t1, dt0, max_steps) -> None:
     """Refuse a constant step that cannot reach ``t1`` within ``max_steps``."""
     if dt0 is None:
         raise ValueError(
-            "adaptive = False (or a constant-step solver) needs a step: dt0 = None; "
-            "give dt0 (the constant step, in s)."
+            "adaptive=False (or a constant-step solver such as 'rosenbrock_euler') "
+            "needs a step: dt0 = None; give dt0 (the constant step, in s)."
         )
     if all(is_concrete(x) for x in (t0, t1, dt0)):
         need = math.ceil((float(t1) - float(t0)) / float(dt0) - 1e-9)

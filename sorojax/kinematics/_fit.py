@@ -30,7 +30,8 @@ def strain_coordinates(
     ``strain_coordinates(rod, [0, 1, 0, 1, 0, 0], total=True)`` (the straight
     reference's elongation 1 included). The fit is by Gauss quadrature over every
     division, so a strain the basis can represent is reproduced exactly; modes the
-    basis lacks keep their reference value.
+    basis lacks keep their reference value, and asking a nonzero deviation of one
+    of them is an error (it would be dropped).
 
     Args:
         linkage: the model.
@@ -45,7 +46,9 @@ def strain_coordinates(
         ``(n_dof,)`` coordinates.
 
     Raises:
-        ValueError: ``link`` is not a soft link; ``strain`` is not a 6-vector; or the
+        ValueError: ``link`` is not a soft link; ``strain`` is not a 6-vector;
+            ``strain`` asks a nonzero value of a component that a division of the
+            link has no mode for (the message names it); or the
             fitted axial stretch ``gx`` (reference included) is <= 0 somewhere on the
             link, i.e. the rod would collapse or turn inside out (typically a total
             strain without its elongation 1 passed as a deviation, or a deviation
@@ -68,8 +71,9 @@ def strain_coordinates(
                 f"strain gives shape {strain.shape}; expected (6,) "
                 "(kx, ky, kz, gx, gy, gz), or a function of the arc length s."
             )
-    q, gx_min, s_min = _fit(linkage, strain, link, q, bool(total))
+    q, gx_min, s_min, dropped = _fit(linkage, strain, link, q, bool(total))
     kind = "total strain" if total else "deviation from the reference strain"
+    q = _check_dropped(q, dropped, link, kind)
     fix = (
         "pass the deviation from the reference (the default, e.g. "
         "[0, 1, 0, 0, 0, 0] bends at 1 rad/m and keeps the reference stretch), or "
@@ -91,12 +95,39 @@ def strain_coordinates(
     return q
 
 
+_COMPONENTS = (
+    "torsion kx", "bending ky", "bending kz", "elongation gx", "shear gy", "shear gz"
+)  # fmt: skip
+
+
+def _check_dropped(q, dropped, link: int, kind: str):
+    """Refuse a strain on components that no division of the link can carry."""
+    bad = dropped > 0
+    what = (
+        f"strain_coordinates: the strain (a {kind}) asks for components that link "
+        f"{link}'s strain basis does not carry (the fit would drop them)"
+    )
+    fix = (
+        "give 0 for them, or add their modes to the link's basis (e.g. "
+        "LegendreBasis((1, 1, 1, 0, 0, 0), order) for torsion and both bendings)"
+    )
+    if isinstance(dropped, jax.core.Tracer):
+        return eqx.error_if(q, jnp.any(bad), f"{what}; {fix}.")
+    d = jax.device_get(dropped)
+    names = [f"{_COMPONENTS[a]} = {float(d[a]):.6g}" for a in range(6) if d[a] > 0]
+    if names:
+        raise ValueError(f"{what}: {', '.join(names)} (largest asked); {fix}.")
+    return q
+
+
 @jit
 def _fit(linkage: Linkage, strain, link: int, q, total: bool):
     """The fit of :func:`strain_coordinates`, one compiled program.
 
-    Returns ``(q, gx_min, s_min)``: the coordinates, the smallest fitted axial
-    stretch on the link (reference included) and the arc length [m] where it is.
+    Returns ``(q, gx_min, s_min, dropped)``: the coordinates, the smallest fitted
+    axial stretch on the link (reference included), the arc length [m] where it is,
+    and per strain component the largest |asked value| in a division whose basis has
+    no column for that component (``(6,)``, zero when nothing is dropped).
     """
     fn = strain if callable(strain) else (lambda s: strain)
     data = precompute(linkage)
@@ -104,6 +135,7 @@ def _fit(linkage: Linkage, strain, link: int, q, total: bool):
     q = jnp.zeros(linkage.n_dof) if q is None else q
     s0 = 0.0
     gx, ss = [], []
+    dropped = jnp.zeros(6)
     for dd, dl, div in zip(
         data.links[link - 1].divisions,
         lay.divisions,
@@ -121,6 +153,9 @@ def _fit(linkage: Linkage, strain, link: int, q, total: bool):
             )
         if total:
             target = target - dd.xi_ref
+        absent = jnp.all(dd.Phi == 0, axis=(0, 2))  # (6,): no column carries it
+        asked = jnp.max(jnp.abs(target), axis=0)
+        dropped = jnp.maximum(dropped, jnp.where(absent, asked, 0.0))
         A = jnp.einsum("p,pai,paj->ij", w, dd.Phi, dd.Phi)
         if dd.locked is not None:  # padding (zero columns) fits to zero
             A = A + jnp.diag(dd.locked)
@@ -135,4 +170,4 @@ def _fit(linkage: Linkage, strain, link: int, q, total: bool):
         s0 = s0 + L
     gx, ss = jnp.concatenate(gx), jnp.concatenate(ss)
     i = jnp.argmin(gx)
-    return q, gx[i], ss[i]
+    return q, gx[i], ss[i], dropped

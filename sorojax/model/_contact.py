@@ -40,7 +40,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from ._checks import check_se3, check_shape, is_concrete
+from ._checks import check_finite, check_se3, check_shape, is_concrete
 from ._hook import Hook, as_hook
 
 
@@ -350,6 +350,8 @@ class Plane(AbstractObstacle):
     ):
         check_shape("Plane.point", point, (3,))
         check_shape("Plane.normal", normal, (3,))
+        check_finite("Plane.point", point, "give a point of the plane in metres")
+        check_finite("Plane.normal", normal, "give the outward normal, e.g. (0, 0, 1)")
         if is_concrete(normal) and not np.linalg.norm(np.asarray(normal, float)) > 0:
             raise ValueError(
                 f"Plane.normal = {normal!r} has zero length: give the outward normal, "
@@ -391,6 +393,7 @@ class Sphere(AbstractObstacle):
         name: str = "sphere",
     ):
         check_shape("Sphere.centre", centre, (3,))
+        check_finite("Sphere.centre", centre, "give the centre in metres")
         self.radius = _scalar("Sphere.radius", radius, True)
         with jax.ensure_compile_time_eval():
             self.centre = jnp.asarray(centre, dtype=float)
@@ -443,6 +446,18 @@ class Capsule(AbstractObstacle):
     ):
         check_shape("Capsule.start", start, (3,))
         check_shape("Capsule.end", end, (3,))
+        for field, value in (("Capsule.start", start), ("Capsule.end", end)):
+            check_finite(field, value, "give the axis' end points in metres")
+        if (
+            is_concrete(start)
+            and is_concrete(end)
+            and np.allclose(np.asarray(start, float), np.asarray(end, float), 0, 0)
+        ):
+            raise ValueError(
+                f"Capsule.start = Capsule.end = {np.asarray(start, float).tolist()}: "
+                "a capsule needs an axis of nonzero length; for a ball use "
+                "sj.Sphere(radius, centre)."
+            )
         self.radius = _scalar("Capsule.radius", radius, True)
         with jax.ensure_compile_time_eval():
             self.start = jnp.asarray(start, dtype=float)
@@ -519,6 +534,7 @@ class ContactSphere(AbstractContactShape):
 
     def __init__(self, radius: ArrayLike, centre: ArrayLike = (0.0, 0.0, 0.0)):
         check_shape("ContactSphere.centre", centre, (3,))
+        check_finite("ContactSphere.centre", centre, "give the centre in metres")
         self.radius = _scalar("ContactSphere.radius", radius, True)
         with jax.ensure_compile_time_eval():
             self.centre = jnp.asarray(centre, dtype=float)
