@@ -51,6 +51,7 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
+import diffrax  # noqa: E402
 import equinox as eqx  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
@@ -100,6 +101,8 @@ TARGET_DAMPED_S = 0.15
 
 # Ladders searched for the matched-accuracy settings (cheapest first).
 RTOL_LADDER = (1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 3e-6, 1e-6, 1e-7, 1e-8)
+# sorojax's constant-step solvers: steps [s] (dt = 0.01 / k, as the peers' ladder)
+DT_LADDER = (5e-3, 10 / 3 * 1e-3, 2.5e-3, 2e-3, 1e-3 / 0.6, 1.25e-3, 1e-3, 5e-4, 2.5e-4)
 # Steps per 10 ms save interval (dt = 0.01 / k) for the fixed-step peers.
 K_LADDER = (2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 25, 32, 40, 50, 64, 80, 100, 128, 160)
 K_LADDER += (200, 256, 320, 400, 500, 640, 800, 1000)
@@ -171,17 +174,18 @@ class SorojaxCase:
         self.solver, self.max_steps = solver, max_steps
         self._tips = jax.jit(lambda q: jax.vmap(lambda x: tip_of(rod, x))(q))
 
-    def run(self, rtol, atol):
+    def run(self, rtol, atol, dt=None):
+        """Adaptive at ``rtol``, ``atol``; with ``dt`` constant steps of it."""
+        steps = dict(rtol=rtol, atol=atol) if dt is None else dict(dt0=dt)
         traj = sorojax.simulate(
             self.rod,
             self.t1,
             self.q0,
             solver=self.solver,
-            rtol=rtol,
-            atol=atol,
             n_save=self.n_save,
             max_steps=self.max_steps,
             throw=False,
+            **steps,
         )
         return jax.block_until_ready(traj)
 
@@ -418,13 +422,22 @@ def bench_sorojax_matched(ref, t1, n_save, target, solvers, repeats, budget_s, o
     rod, q0 = sorojax_rod(ALL_MODES, order)
     for solver in solvers:
         case = SorojaxCase(rod, q0, t1, n_save, solver)
+        # constant-step solvers climb a ladder of steps, the others one of tolerances
+        constant = not isinstance(
+            sorojax.integrate.SOLVERS[solver](), diffrax.AbstractAdaptiveSolver
+        )
+        ladder = (
+            [(None, None, dt) for dt in DT_LADDER]
+            if constant
+            else [(r, r, None) for r in RTOL_LADDER]
+        )
         # Probe: cost of the loosest setting on a twentieth of the span.
         probe = SorojaxCase(rod, q0, t1 / 20, max(2, n_save // 20), solver)
         t0 = time.perf_counter()
-        probe.run(RTOL_LADDER[0], RTOL_LADDER[0])
+        probe.run(*ladder[0])
         first_probe = time.perf_counter() - t0
         t0 = time.perf_counter()
-        probe.run(RTOL_LADDER[0], RTOL_LADDER[0])
+        probe.run(*ladder[0])
         est = 20 * (time.perf_counter() - t0)
         row = {
             "code": "sorojax",
@@ -445,22 +458,24 @@ def bench_sorojax_matched(ref, t1, n_save, target, solvers, repeats, budget_s, o
             rows.append(row)
             continue
         chosen, scan = None, []
-        for rtol in RTOL_LADDER:
+        for rtol, atol, dt in ladder:
             t0 = time.perf_counter()
-            traj = case.run(rtol, rtol)
+            traj = case.run(rtol, atol, dt)
             first = time.perf_counter() - t0
             err = tip_error(case.tips(traj), ref)
             scan.append(
                 {
                     "rtol": rtol,
-                    "atol": rtol,
+                    "atol": atol,
+                    "dt": dt,
                     "tip_error": err,
                     "steps": int(traj.num_steps),
                     "first_call_s": first,
                 }
             )
+            how = f"dt {dt:.3g}" if constant else f"rtol {rtol:g}"
             print(
-                f"    sorojax {solver} rtol {rtol:g}: err {err:.2e}, "
+                f"    sorojax {solver} {how}: err {err:.2e}, "
                 f"{int(traj.num_steps)} steps, {first:.2f} s"
             )
             if err <= target:
@@ -476,16 +491,21 @@ def bench_sorojax_matched(ref, t1, n_save, target, solvers, repeats, budget_s, o
         # Timing at the chosen rtol: compile measured on a fresh trace of the same call.
         first_call = scan[0]["first_call_s"]
         ts = timed_runs(
-            lambda c=chosen, case=case: case.run(c["rtol"], c["atol"]),
+            lambda c=chosen, case=case: case.run(c["rtol"], c["atol"], c["dt"]),
             repeats,
             budget_s,
         )
         row.update(summary(ts))
         row.update(
             {
-                "settings": f"{solver}, rtol = atol = {chosen['rtol']:g}",
+                "settings": (
+                    f"{solver}, constant dt = {chosen['dt']:.3g} s"
+                    if constant
+                    else f"{solver}, rtol = atol = {chosen['rtol']:g}"
+                ),
                 "rtol": chosen["rtol"],
                 "atol": chosen["atol"],
+                "dt": chosen["dt"],
                 "steps": chosen["steps"],
                 "tip_error": chosen["tip_error"],
                 "first_call_s": first_call,
@@ -493,7 +513,7 @@ def bench_sorojax_matched(ref, t1, n_save, target, solvers, repeats, budget_s, o
         )
         # compile ~ first call at the loosest rtol minus a warm call at that rtol
         warm_first = timed_runs(
-            lambda case=case: case.run(RTOL_LADDER[0], RTOL_LADDER[0]),
+            lambda case=case: case.run(*ladder[0]),
             1,
             budget_s,
         )[0]
@@ -818,7 +838,7 @@ def main(argv=None):
     ap.add_argument("--damped-atol", type=float, default=defaults["atol"].default)
     ap.add_argument(
         "--solvers",
-        default="ros34pw2,tsit5",
+        default="ros34pw2,tsit5,rosenbrock_trapezoid",
         help="sorojax solvers for the matched-accuracy runs (comma separated)",
     )
     ap.add_argument("--repeats", type=int, default=None, help="timed runs (5)")

@@ -397,8 +397,10 @@ class RosenbrockEuler(diffrax.AbstractSolver):
       undamped rod keeps its energy, but fast modes that a step cannot resolve
       ring instead of decaying.
 
-    Not adaptive (no error estimate): use it with ``adaptive=False`` and ``dt0``.
-    Dense output between steps is linear.
+    Not adaptive (no error estimate): ``simulate`` runs it at constant steps of its
+    ``dt0``. Dense output between steps is linear. With W only the linear part of a
+    nonlinear model (large rotations, contact's curvature) both variants are first
+    order in practice.
 
     Attributes:
         gamma: the implicitness ``(0, 1]``.
