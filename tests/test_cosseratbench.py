@@ -116,8 +116,8 @@ def test_contact_scenes_model_choices():
 
     Crossing: both ropes in one linkage, planar (two ropes crossing at a right
     angle press along gravity), divided where they cross (the shear force jumps
-    there), settled by the damped dynamics for half the duration and then solved by
-    Newton's method from there, a rod-pair stiffness that sinks the ropes' weight
+    there), settled by the damped dynamics (constant linearly implicit Euler steps)
+    for half the duration and then solved by Newton's method from there, a rod-pair stiffness that sinks the ropes' weight
     by 2e-3 of the radius. Capstan: the free rope on a planar free joint, damped
     dynamics with friction against the cylinder (a capsule) on several divisions.
     Pile: a 3D rope on a prismatic (lowered) start, Tsit5 (a W of every segment
@@ -132,7 +132,9 @@ def test_contact_scenes_model_choices():
     assert m["method"] == "damped" and m["start_joint"] == "R", m
     # order 10 at 51 elements: ROS34PW2, the rod pair's stiffness in its W
     assert m["orders"]["bend_y"] == 10 and m["solver"] == "ros34pw2", m
-    # frictionless and quasi-static: Newton's equilibrium from the settled state
+    # frictionless and quasi-static: settled by constant linearly implicit Euler
+    # steps (only the end state matters), then Newton's equilibrium from there
+    assert m["settle"].startswith("rosenbrock_euler, constant steps"), m
     assert m["then"].startswith("solve_statics from the state at 0.5"), m
     m31 = solver.settings(crossing.scenario, n_elements=31, n_frames=3)["model"]
     assert m31["orders"]["bend_y"] == 6 and m31["solver"] == "tsit5", m31

@@ -60,8 +60,8 @@ between rods and :data:`OBSTACLE_PENETRATION` against obstacles, critical dampin
 the larger friction coefficient, static and kinetic alike).
 Frictionless quasi-static scenes (crossing) settle by the damped dynamics of the
 statics' model (:data:`CONTACT_STATICS`) for :data:`SETTLE_FRACTION` of the
-duration, then Newton's method finds the equilibrium from there, which later
-frames show. A heaping rope (self-contact: the pile)
+duration, at constant linearly implicit Euler steps (:data:`SETTLE_SOLVER`), then
+Newton's method finds the equilibrium from there, which later frames show. A heaping rope (self-contact: the pile)
 runs the damped dynamics with Tsit5 and softer laws (:data:`HEAP_PENETRATION`,
 :data:`HEAP_FLOOR_PENETRATION`, :data:`HEAP_STICK_VELOCITY`): every pair of its
 segments is checked at every step. Other frictional ones (capstan) run the damped
@@ -250,6 +250,23 @@ equilibrium from there, which every later frame shows (as in the statics path).
 The damped ropes approach it along a very soft mode (smallest eigenvalue of the
 crossing's tangent 3.5e-4 at 50 elements) and still creep at 0.7 mm/s at the end
 of the duration, while the shape and lift change by under 1e-5 of the length."""
+
+SETTLE_SOLVER = "rosenbrock_euler"
+"""Integrator of that settling: constant linearly implicit Euler steps (the rod
+pairs' stiffness in W). Only the end state matters there (Newton's method takes it
+to the equilibrium), and the L-stable Euler steps over the contact's and the ropes'
+fast modes and damps what it does not resolve, where an adaptive explicit solver
+resolves them all."""
+
+SETTLE_STEPS_PER_FRAME = 160
+"""Constant steps per frame interval of that settling (the crossing: 0.5 ms; at 1 and
+2 ms the ropes' first touch, within a step and outside its W, went through each other:
+non-finite states and a broad-phase overflow)."""
+
+SETTLE_NEWTON_STEPS = 32
+"""Newton steps from the settled state. On the crossing (51 elements) the scaled
+residual is 2.5e-9 after 16 steps, 2.0e-9 after 32 and 2.2e-10 after 256 (which
+took 35 s more): it stalls near 1e-9, far below :data:`SETTLE_RESIDUAL`."""
 
 SETTLE_RESIDUAL = 1e-6
 """Largest scaled residual accepted from that Newton solve, with no negative
@@ -1253,6 +1270,7 @@ def _advance(
     solver: str,
     rtol: float,
     atol: float,
+    dt: float | None = None,
 ):
     """A chunk of frames for a batch of rods (local frame).
 
@@ -1261,9 +1279,11 @@ def _advance(
     ``(batch, 2 n_dof)``, ``angles`` ``(batch, n_times)`` or None. Returns ``(ys,
     positions, d1, ok, steps)`` with a leading batch axis and then one entry per save
     time. Shapes depend on neither the frame times nor their number: one compilation
-    serves every chunk of every run of the same scene.
+    serves every chunk of every run of the same scene. ``dt``: constant steps of it
+    (a constant-step solver) instead of adaptive ones at ``rtol``, ``atol``.
     """
     n = linkage.n_dof
+    steps = dict(rtol=rtol, atol=atol) if dt is None else dict(dt0=dt)
 
     def one(y_, angles_):
         u = None if angles_ is None else eqx.Partial(_prescribed, times, angles_)
@@ -1275,11 +1295,10 @@ def _advance(
             t0=t0,
             ts=ts,
             solver=solver,
-            rtol=rtol,
-            atol=atol,
             u=u,
             throw=False,
             max_steps=1 << 20,
+            **steps,
         )
         ys = jnp.concatenate([tr.q, tr.qd], axis=1)
         g = jax.vmap(lambda q: sj.forward_kinematics(sampler, q))(tr.q)
@@ -1305,7 +1324,8 @@ class SorojaxSolver:
         backend_version: the installed sorojax version.
         time_step_scale: multiplies the integrator's steps: the relative tolerance of
             the adaptive step control is scaled by ``time_step_scale**p``, ``p`` the
-            order of its local error; statics has no step and ignores it.
+            order of its local error, and constant steps by ``time_step_scale``;
+            statics has no step and ignores it.
     """
 
     name = "sorojax"
@@ -1389,6 +1409,12 @@ class SorojaxSolver:
                 )
                 entry.update(solver=solver, rtol=rtol, atol=atol, adaptive=True)
             if contact and _settles(scenario):
+                entry["settle"] = (
+                    f"{SETTLE_SOLVER}, constant steps of 1/{SETTLE_STEPS_PER_FRAME} "
+                    f"of a frame interval (x time_step_scale) to {SETTLE_FRACTION:g} "
+                    "of the duration; the solver above if Newton finds no equilibrium "
+                    "from there"
+                )
                 entry["then"] = (
                     f"solve_statics from the state at {SETTLE_FRACTION:g} of the "
                     f"duration (scaled residual <= {SETTLE_RESIDUAL:g}, stable); "
@@ -1492,13 +1518,15 @@ class SorojaxSolver:
         """
         k = int(np.searchsorted(times, SETTLE_FRACTION * times[-1]))
         k = min(max(k, 1), len(times) - 1)
-        (pos, d1), y = self._dynamics([mdl], [0], times[: k + 1], True, state=True)
+        (pos, d1), y = self._dynamics(
+            [mdl], [0], times[: k + 1], True, state=True, settle=True
+        )
         sol = sj.solve_statics(
             mdl.linkage,
             jnp.asarray(y[0, : mdl.linkage.n_dof]),
             throw=False,
             warn_unstable=False,
-            max_steps=STATICS_MAX_STEPS,
+            max_steps=SETTLE_NEWTON_STEPS,
             load_steps=1,
         )
         found = (
@@ -1593,7 +1621,13 @@ class SorojaxSolver:
         return pos, d
 
     def _dynamics(
-        self, models, members, times, contact: bool = False, state: bool = False
+        self,
+        models,
+        members,
+        times,
+        contact: bool = False,
+        state: bool = False,
+        settle: bool = False,
     ):
         mdl = models[members[0]]
         c = mdl.linkage.contact
@@ -1602,6 +1636,11 @@ class SorojaxSolver:
         solver, rtol, atol = self._tolerances(
             contact and _implicit(mdl.plan, obstacles), heap
         )
+        dt = None
+        if settle:  # only the end state matters: constant implicit Euler steps
+            solver = SETTLE_SOLVER
+            frame = float(times[1] - times[0])
+            dt = frame / SETTLE_STEPS_PER_FRAME * self.time_step_scale
         n = mdl.linkage.n_dof
         B = len(members)
         y = jnp.tile(jnp.concatenate([mdl.q0, jnp.zeros(n)])[None], (B, 1))
@@ -1631,6 +1670,7 @@ class SorojaxSolver:
                 solver,
                 rtol,
                 atol,
+                dt,
             )
             if not bool(jnp.all(ok)):
                 raise Diverged(

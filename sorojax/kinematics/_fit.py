@@ -1,5 +1,6 @@
 """Coordinates of a soft link that best reproduce a given strain field."""
 
+import warnings
 from collections.abc import Callable
 
 import equinox as eqx
@@ -31,7 +32,7 @@ def strain_coordinates(
     reference's elongation 1 included). The fit is by Gauss quadrature over every
     division, so a strain the basis can represent is reproduced exactly; modes the
     basis lacks keep their reference value, and asking a nonzero deviation of one
-    of them is an error (it would be dropped).
+    of them is warned of, naming it (the fit drops it).
 
     Args:
         linkage: the model.
@@ -45,10 +46,12 @@ def strain_coordinates(
     Returns:
         ``(n_dof,)`` coordinates.
 
+    Warns:
+        UserWarning: ``strain`` asks a nonzero value of a component that a division
+            of the link has no mode for (named in the message; the fit drops it).
+
     Raises:
-        ValueError: ``link`` is not a soft link; ``strain`` is not a 6-vector;
-            ``strain`` asks a nonzero value of a component that a division of the
-            link has no mode for (the message names it); or the
+        ValueError: ``link`` is not a soft link; ``strain`` is not a 6-vector; or the
             fitted axial stretch ``gx`` (reference included) is <= 0 somewhere on the
             link, i.e. the rod would collapse or turn inside out (typically a total
             strain without its elongation 1 passed as a deviation, or a deviation
@@ -101,22 +104,25 @@ _COMPONENTS = (
 
 
 def _check_dropped(q, dropped, link: int, kind: str):
-    """Refuse a strain on components that no division of the link can carry."""
-    bad = dropped > 0
-    what = (
-        f"strain_coordinates: the strain (a {kind}) asks for components that link "
-        f"{link}'s strain basis does not carry (the fit would drop them)"
-    )
-    fix = (
-        "give 0 for them, or add their modes to the link's basis (e.g. "
-        "LegendreBasis((1, 1, 1, 0, 0, 0), order) for torsion and both bendings)"
-    )
+    """Warn of a strain on components that no division of the link can carry.
+
+    A warning, not an error: fitting a measured or tabulated strain field (a
+    centre line's curvatures) to a model that leaves modes out on purpose is a
+    least-squares fit by design. Under an outer trace nothing is checked.
+    """
     if isinstance(dropped, jax.core.Tracer):
-        return eqx.error_if(q, jnp.any(bad), f"{what}; {fix}.")
+        return q
     d = jax.device_get(dropped)
     names = [f"{_COMPONENTS[a]} = {float(d[a]):.6g}" for a in range(6) if d[a] > 0]
     if names:
-        raise ValueError(f"{what}: {', '.join(names)} (largest asked); {fix}.")
+        warnings.warn(
+            f"strain_coordinates: the strain (a {kind}) asks for components that "
+            f"link {link}'s strain basis does not carry, and the fit drops them: "
+            f"{', '.join(names)} (largest asked). Give 0 for them, or add their "
+            "modes to the link's basis (e.g. LegendreBasis((1, 1, 1, 0, 0, 0), "
+            "order) for torsion and both bendings).",
+            stacklevel=3,
+        )
     return q
 
 
