@@ -454,8 +454,12 @@ def main(argv=None):
     ap.add_argument("--t1", type=float, default=1.0)
     ap.add_argument("--tension", type=float, default=4.0)
     ap.add_argument("--solver", default="rosenbrock_euler")
-    ap.add_argument("--dt", type=float, default=2e-3,
-                    help="constant step [s]; 0: adaptive steps at --rtol, --atol")
+    ap.add_argument(
+        "--dt",
+        type=float,
+        default=2e-3,
+        help="constant step [s]; 0: adaptive steps at --rtol, --atol",
+    )
     ap.add_argument("--rtol", type=float, default=1e-3)
     ap.add_argument("--atol", type=float, default=1e-6)
     ap.add_argument("--batch", type=int, default=64,
@@ -538,9 +542,11 @@ def _table(res):
         print(f"{name:34s} {n:6d} {w:7.3f} {w / t1:9.3f} {1e3 * w / n:8.3f} {cs:>9s} "
               f"{ph['lift_mm']:8.2f} {ph['slip_mm']:8.2f}")  # fmt: skip
     tm = res["timing"]
-    print(f"sorojax warm / MuJoCo rollout: {tm['ratio_median_of_rounds']:.2f}x "
-          f"(median of the rounds' ratios; {min(tm['round_ratios']):.2f}-"
-          f"{max(tm['round_ratios']):.2f}x); the reference's row: its first call")
+    print(
+        f"sorojax warm / MuJoCo rollout: {tm['ratio_median_of_rounds']:.2f}x "
+        f"(median of the rounds' ratios; {min(tm['round_ratios']):.2f}-"
+        f"{max(tm['round_ratios']):.2f}x); the reference's row: its first call"
+    )
     b = res["batch"]
     if b:
         print(f"{b['cases']} grasps: sorojax vmap {b['sorojax_cases_per_s']:.1f} "

@@ -40,7 +40,8 @@ rollouts (adaptive Tsit5 at rtol 1e-4, ``--dt 0``: 3.835 N in 5 rollouts; 1 ms s
 
 Run::
 
-    .venv/bin/python examples/grasp_tension.py [--out DIR] [--t1 1.4] [--grid 8] [--dt 5e-4]
+    .venv/bin/python examples/grasp_tension.py [--out DIR] [--t1 1.4] [--grid 8]
+        [--dt 5e-4]
 """
 
 import argparse
@@ -152,8 +153,12 @@ def main(argv=None):
     p.add_argument("--grid", type=int, default=8)
     p.add_argument("--start", type=float, default=6.0)
     p.add_argument("--max-rollouts", type=int, default=10)
-    p.add_argument("--dt", type=float, default=5e-4,
-                   help="constant step [s] of the rollouts; 0: adaptive Tsit5")
+    p.add_argument(
+        "--dt",
+        type=float,
+        default=5e-4,
+        help="constant step [s] of the rollouts; 0: adaptive Tsit5",
+    )
     p.add_argument("--overwrite", action="store_true")
     a = p.parse_args(argv)
     dt = a.dt or None

@@ -61,9 +61,10 @@ the larger friction coefficient, static and kinetic alike).
 Frictionless quasi-static scenes (crossing) settle by the damped dynamics of the
 statics' model (:data:`CONTACT_STATICS`) for :data:`SETTLE_FRACTION` of the
 duration, at constant linearly implicit Euler steps (:data:`SETTLE_SOLVER`), then
-Newton's method finds the equilibrium from there, which later frames show. A heaping rope (self-contact: the pile)
-runs the damped dynamics with Tsit5 and softer laws (:data:`HEAP_PENETRATION`,
-:data:`HEAP_FLOOR_PENETRATION`, :data:`HEAP_STICK_VELOCITY`): every pair of its
+Newton's method finds the equilibrium from there, which later frames show. A
+heaping rope (self-contact: the pile) runs the damped dynamics with Tsit5 and softer
+laws (:data:`HEAP_PENETRATION`, :data:`HEAP_FLOOR_PENETRATION`,
+:data:`HEAP_STICK_VELOCITY`): every pair of its
 segments is checked at every step. Other frictional ones (capstan) run the damped
 dynamics with ROS34PW2 (its W carries the obstacle contact and sticking friction,
 tolerance :data:`CONTACT_RTOL`) on :data:`DIVISION_RULE` divisions of order

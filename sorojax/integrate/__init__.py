@@ -2,8 +2,8 @@
 
 from ._rosenbrock import ROS34PW2 as ROS34PW2
 from ._rosenbrock import MechanicalTerm as MechanicalTerm
-from ._rosenbrock import RosenbrockTableau as RosenbrockTableau
 from ._rosenbrock import RosenbrockEuler as RosenbrockEuler
+from ._rosenbrock import RosenbrockTableau as RosenbrockTableau
 from ._rosenbrock import RosenbrockW as RosenbrockW
 from ._simulate import DEFAULT_SOLVER as DEFAULT_SOLVER
 from ._simulate import SOLVERS as SOLVERS

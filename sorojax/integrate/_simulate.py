@@ -349,7 +349,7 @@ def _vector_field(
 
 
 def _result_code(sol: diffrax.Solution, constant_step: bool) -> RESULTS:
-    """sorojax's result code of a diffrax solution.
+    """The sorojax result code of a diffrax solution.
 
     A successful solve whose saved states are not all finite failed: at a constant
     step it is ``unstable_step`` (the step is too large for the scheme), with
