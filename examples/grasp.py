@@ -95,11 +95,11 @@ def grasp(lk, tension, t1, n_save=61, solver="rosenbrock_euler", dt=2e-3,
     By default constant 2 ms steps of the linearly implicit Euler solver (one
     evaluation and one 13 x 13 Cholesky solve per step). Against adaptive ROS34PW2
     at rtol 1e-4 over the first second at 4 N (benchmarks/grasp_peers.py) the ball's
-    lift and slip differ by 0.09 and 0.03 mm (4 ms steps: 0.5 and 0.15 mm); over
+    lift and slip differ by 0.09 and 0.01 mm (4 ms steps: 0.56 and 0.30 mm); over
     the 1.8 s of ``main`` the slow creep of the held ball (2.72 mm with Tsit5 at rtol
-    1e-4) comes out 2.18 mm (1 ms steps: 2.44 mm; the error is first order in the
-    step). ``dt=None`` takes adaptive steps of ``solver`` at ``rtol``, ``atol``
-    (e.g. ``solver="ros34pw2"``).
+    1e-4) comes out 2.48 mm (1 ms steps: 2.59 mm, 4 ms: 2.02 mm; the error is first
+    order in the step). ``dt=None`` takes adaptive steps of ``solver`` at ``rtol``,
+    ``atol`` (e.g. ``solver="ros34pw2"``).
     """
     # the tension as an array argument: every tension runs the same program
     u = eqx.Partial(inputs, tension=jnp.asarray(tension))

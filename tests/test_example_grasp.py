@@ -24,7 +24,7 @@ def test_grasp_holds_at_4_newtons_and_slips_at_2(tmp_path):
     assert (tmp_path / "grasp.png").stat().st_size > 10_000
     # 4 N: friction holds the 20 g ball through the 5 cm lift and a 1 s hold; the
     # regularised friction (v_s = 1 cm/s) lets it creep ~v_s r / sqrt(1 - r^2):
-    # measured 2.2 mm at the example's 2 ms Euler steps (2.7 mm adaptive Tsit5),
+    # measured 2.5 mm at the example's 2 ms Euler steps (2.7 mm adaptive Tsit5),
     # under a tenth of the lift
     assert abs(results[4.0][3]) < 5e-3
     # 2 N: the squeeze is too weak for mu = 0.8: it slides out (measured 51 mm)
