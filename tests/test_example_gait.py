@@ -34,4 +34,7 @@ def test_crawler_gait_gradient_and_grid(tmp_path):
     assert np.max(out["grid"]) > 0
     # the ascents never go down: from the start, and from the grid's best cell
     assert out["ascent"][1] >= v0
-    assert out["refined"][1] >= out["best_grid"][2]
+    # (when no trial step improves on the grid's cell the ascent ends where it
+    # started: the same value from another program, equal to round-off)
+    best = out["best_grid"][2]
+    assert out["refined"][1] >= best - 1e-12 * abs(best)
