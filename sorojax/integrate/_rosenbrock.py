@@ -261,9 +261,6 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
         """Order of the local error estimate's leading term minus one."""
         return self.tableau.order
 
-    def _evaluate(self, terms, t, y, args):
-        return _evaluate(terms, t, y, args)
-
     def init(self, terms, t0, t1, y0, args):
         """The solver's state (None for a :class:`MechanicalTerm`).
 
@@ -273,7 +270,7 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
         _check_state(type(self).__name__, y0)
         if _mechanical_term(terms) is not None:
             return None  # the mechanical step evaluates its own start
-        return self._evaluate(terms, t0, y0, args)
+        return _evaluate(terms, t0, y0, args)
 
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
         """One step of the method (see the module docstring)."""
@@ -286,7 +283,7 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
         else:
             f0, lin0 = jax.lax.cond(
                 made_jump,
-                lambda: self._evaluate(terms, t0, y0, args),
+                lambda: _evaluate(terms, t0, y0, args),
                 lambda: solver_state,
             )
         h = t1 - t0
@@ -304,7 +301,7 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
             us.append(solve(rhs))
         y1 = y0 + sum(tab.m[i] * us[i] for i in range(s))
         y_error = sum(tab.e[i] * us[i] for i in range(s) if tab.e[i])
-        f1, lin1 = self._evaluate(terms, t1, y1, args)
+        f1, lin1 = _evaluate(terms, t1, y1, args)
         dense_info = dict(y0=y0, y1=y1, k0=f0 * h, k1=f1 * h)
         return y1, y_error, dense_info, (f1, lin1), diffrax.RESULTS.successful
 
@@ -344,7 +341,7 @@ class RosenbrockW(diffrax.AbstractAdaptiveSolver):
         # ~7 % faster than without it, 2-core CPU). Only the evaluation: with the
         # whole body checkpointed, the factorisation's cond made the reverse pass
         # 1.4x slower.
-        evaluate = jax.checkpoint(lambda t, y: self._evaluate(terms, t, y, args))
+        evaluate = jax.checkpoint(lambda t, y: _evaluate(terms, t, y, args))
 
         def body(i, carry):
             us, factor, f0 = carry

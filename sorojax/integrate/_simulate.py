@@ -208,10 +208,8 @@ def auto_solver(linkage: Linkage, q0, t0, t1, rtol: float) -> str:
     return "tsit5"
 
 
-def _choose_solver(solver, linkage, q0, t0, t1, rtol):
-    if isinstance(solver, str) and solver.lower() == "auto":
-        return auto_solver(linkage, q0, t0, t1, rtol)
-    return solver
+def _is_auto(solver) -> bool:
+    return isinstance(solver, str) and solver.lower() == "auto"
 
 
 def _make_solver(solver) -> diffrax.AbstractSolver:
@@ -677,10 +675,6 @@ def _check_span(t0, t1, ts) -> None:
             )
 
 
-def _is_auto(solver) -> bool:
-    return isinstance(solver, str) and solver.lower() == "auto"
-
-
 def _adaptive(name, solver, adaptive: bool | None) -> bool:
     """Adaptive steps or not: ``adaptive``, or by default whether the solver can.
 
@@ -784,8 +778,8 @@ def _plan(
         raise ValueError(f"max_steps = {max_steps}; give a positive integer.")
     if not adaptive:
         _check_constant_steps(t0, t1, dt0, max_steps)
-    if solver_ is None:
-        solver_ = _make_solver(_choose_solver(solver, linkage, q0, t0_, t1_, rtol))
+    if solver_ is None:  # "auto": chosen from the linearisation at q0
+        solver_ = _make_solver(auto_solver(linkage, q0, t0_, t1_, rtol))
     if adaptive:
         if isinstance(solver_, diffrax.AbstractImplicitSolver | RosenbrockW):
             # PI control: the plain I controller makes implicit solvers on damped

@@ -76,7 +76,7 @@ def strain_coordinates(
             )
     q, gx_min, s_min, dropped = _fit(linkage, strain, link, q, bool(total))
     kind = "total strain" if total else "deviation from the reference strain"
-    q = _check_dropped(q, dropped, link, kind)
+    _warn_dropped(dropped, link, kind)
     fix = (
         "pass the deviation from the reference (the default, e.g. "
         "[0, 1, 0, 0, 0, 0] bends at 1 rad/m and keeps the reference stretch), or "
@@ -103,7 +103,7 @@ _COMPONENTS = (
 )  # fmt: skip
 
 
-def _check_dropped(q, dropped, link: int, kind: str):
+def _warn_dropped(dropped, link: int, kind: str) -> None:
     """Warn of a strain on components that no division of the link can carry.
 
     A warning, not an error: fitting a measured or tabulated strain field (a
@@ -111,7 +111,7 @@ def _check_dropped(q, dropped, link: int, kind: str):
     least-squares fit by design. Under an outer trace nothing is checked.
     """
     if isinstance(dropped, jax.core.Tracer):
-        return q
+        return
     d = jax.device_get(dropped)
     names = [f"{_COMPONENTS[a]} = {float(d[a]):.6g}" for a in range(6) if d[a] > 0]
     if names:
@@ -123,7 +123,6 @@ def _check_dropped(q, dropped, link: int, kind: str):
             "order) for torsion and both bendings).",
             stacklevel=3,
         )
-    return q
 
 
 @jit

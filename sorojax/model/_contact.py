@@ -451,7 +451,7 @@ class Capsule(AbstractObstacle):
         if (
             is_concrete(start)
             and is_concrete(end)
-            and np.allclose(np.asarray(start, float), np.asarray(end, float), 0, 0)
+            and np.array_equal(np.asarray(start, float), np.asarray(end, float))
         ):
             raise ValueError(
                 f"Capsule.start = Capsule.end = {np.asarray(start, float).tolist()}: "
