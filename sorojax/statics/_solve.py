@@ -43,6 +43,7 @@ from ..dynamics._constraints import (
 )
 from ..dynamics._contact import (
     contact_wrenches_and_penetrations,
+    obstacle_samples,
     smallest_radius,
     state_from_data,
 )
@@ -125,7 +126,17 @@ def _residual_and_closure(linkage: Linkage, data: LinkageData, q, t, lam, u, mu)
         F = force_from_wrenches(data, records, W)
     else:
         F = jnp.einsum("pai,pa->i", kin.J, W)
-    return data.K @ q - F - Q, e, d
+    return data.K @ q - F - Q, e, d, g
+
+
+def _limits_moves(linkage: Linkage) -> bool:
+    """Whether statics bounds each step's motion of the points.
+
+    So it does for contacts between bodies, which a broad phase finds (rod pairs,
+    self-contact, tubes).
+    """
+    c = linkage.contact
+    return c is not None and bool(c.rod_pairs or c.self_contact or c.inside)
 
 
 def free_coordinates(linkage: Linkage) -> np.ndarray:
@@ -138,8 +149,9 @@ def scaled_equilibrium(linkage: Linkage, data: LinkageData, x, t, lam, u, q_p):
 
     ``f = (diag(K)^-1 r_free, e)`` (Jacobi-scaled equilibrium rows of the free
     coordinates, then the closure errors); ``r`` the unscaled residual, all rows,
-    followed by the contact penetrations (none without contact), whose Jacobian
-    bounds the Newton steps.
+    followed (where :func:`_limits_moves`) by the significant points' positions and
+    by the contact penetrations (none without contact), whose Jacobians bound the
+    Newton steps.
     Prescribed coordinates take the values ``q_p`` (``Linkage.prescribed`` order).
     """
     free = free_coordinates(linkage)
@@ -149,10 +161,10 @@ def scaled_equilibrium(linkage: Linkage, data: LinkageData, x, t, lam, u, q_p):
     if len(qi):
         q = q.at[qi].set(q_p)
     mu = x[nf:] if linkage.n_constraints else None
-    r, e, d = _residual_and_closure(linkage, data, q, t, lam, u, mu)
-    return jnp.concatenate([_row_scale(data.K)[free] * r[free], e]), jnp.concatenate(
-        [r, d]
-    )
+    r, e, d, g = _residual_and_closure(linkage, data, q, t, lam, u, mu)
+    rows = [r, g[:, :3, 3].reshape(-1), d] if _limits_moves(linkage) else [r, d]
+    f = jnp.concatenate([_row_scale(data.K)[free] * r[free], e])
+    return f, jnp.concatenate(rows)
 
 
 def _closure_converted(fn, *inputs):
@@ -241,6 +253,102 @@ def _has_barrier(contact) -> bool:
     return any(law.kind == "barrier" for law in laws)
 
 
+STIFFNESS_FACTOR = 10.0
+"""Largest factor between the contact stiffnesses of two continuation stages."""
+
+
+def _has_penalty(contact) -> bool:
+    """Whether any of the contact's laws is a penalty."""
+    laws = (contact.law, *contact.obstacle_laws)
+    return any(law.kind == "penalty" for law in laws)
+
+
+def _softened(linkage: Linkage, s) -> Linkage:
+    """The linkage with every penalty law's stiffness times ``s``."""
+
+    def scaled(law):
+        if law.kind != "penalty":
+            return law
+        return eqx.tree_at(lambda l_: l_.stiffness, law, law.stiffness * s)
+
+    contact = linkage.contact
+    contact = eqx.tree_at(lambda c: c.law, contact, scaled(contact.law))
+    for i, law in enumerate(contact.obstacle_laws):
+        contact = eqx.tree_at(lambda c, i=i: c.obstacle_laws[i], contact, scaled(law))
+    return eqx.tree_at(lambda l_: l_.contact, linkage, contact)
+
+
+def _row_stiffness(linkage: Linkage, n_rows: int) -> Array:
+    """Each contact row's penalty stiffness [N/m].
+
+    The law's k times the length a rod sample stands for (obstacle rows, first),
+    the law's k per point (rod pairs, tubes); 0 for barrier laws.
+    """
+    contact = linkage.contact
+
+    def k_of(law):
+        return law.stiffness if law.kind == "penalty" else jnp.zeros(())
+
+    parts = []
+    if contact.obstacles:
+        w = obstacle_samples(linkage).weight
+        parts = [
+            k_of(contact.obstacle_law(i)) * w for i in range(len(contact.obstacles))
+        ]
+    n_obs = sum(p.shape[0] for p in parts)
+    parts.append(jnp.full((n_rows - n_obs,), k_of(contact.law)))
+    return jnp.concatenate(parts)
+
+
+def _stiffness_stages(linkage, data, q0, free, depth_cap, r_min, factor, skip):
+    """``stages_of`` for :func:`_newton`: how many tenfold stiffness stages to take.
+
+    A penalty contact that Newton's first steps meet at the depth cap (about
+    ``depth_cap``) pushes back with k times that depth; where this is many times
+    the load, the next step throws the body off and the iterations bounce. The
+    load's penetration at the user's stiffness is estimated as
+    ``max |F| / max_j sum_i k_i |dd_i/dq_j|`` (the load, ``F`` the residual at
+    full load or the elastic force at the start, whichever is larger, carried by
+    every sample at one depth); where it is below the target depth (ten depth
+    caps, at most 5 % of the smallest radius), the solve starts at the stiffness
+    that puts it there and multiplies it by at most ``factor`` per stage.
+    """
+    if factor is None:
+        return None
+    nf = len(free)
+    n = linkage.n_dof
+    elastic = jax.lax.stop_gradient(jnp.abs(data.K @ q0)[free])
+    target = jnp.minimum(10.0 * depth_cap, jnp.maximum(depth_cap, 0.05 * r_min))
+    log_factor = math.log(factor)
+
+    def stages_of(f, aux, J_aux):
+        del f
+        r0 = jnp.where(jnp.isfinite(aux[:n]), aux[:n], 0.0)[free]
+        load = jnp.maximum(
+            jnp.max(jnp.abs(r0), initial=0.0), jnp.max(elastic, initial=0.0)
+        )
+        G = J_aux[n + skip :, :nf]
+        G = jnp.where(jnp.isfinite(G), jnp.abs(G), 0.0)
+        reach = jnp.max(_row_stiffness(linkage, G.shape[0]) @ G, initial=0.0)
+        if skip:
+            # Contacts between bodies (no penetration rows before the broad phase
+            # sees them): one point carries the load, at the law's k per point.
+            P = J_aux[n : n + skip, :nf].reshape(-1, 3, nf)
+            P = jnp.where(jnp.isfinite(P), P, 0.0)
+            lever = jnp.max(jnp.sqrt(jnp.sum(P * P, axis=1)), axis=0)
+            k_pair = linkage.contact.law.stiffness
+            if linkage.contact.law.kind != "penalty":
+                k_pair = jnp.zeros(())
+            reach = jnp.maximum(reach, jnp.max(k_pair * lever, initial=0.0))
+        depth = load / jnp.where(reach > 0, reach, 1.0)
+        s0 = jnp.where((reach > 0) & (load > 0), depth / target, 1.0)
+        s0 = jnp.clip(s0, 1e-12, 1.0)
+        m = jnp.ceil(-jnp.log(s0) / log_factor - 1e-9)
+        return jax.lax.stop_gradient((jnp.maximum(m, 0.0), s0))
+
+    return stages_of
+
+
 def _newton(
     fn_aux,
     x0,
@@ -255,13 +363,16 @@ def _newton(
     max_step=jnp.inf,
     regularise=False,
     contact_rows=None,
+    stages_of=None,
+    n_points=0,
 ):
     """Newton's method over load increments lambda = k / n, k = 1 .. n, one loop.
 
-    ``fn_aux(x, lam) -> (f, aux)``. Each iteration evaluates f, its Jacobian and
-    ``aux`` at the current x in one forward-mode pass (the only trace of the residual
-    in the compiled program). The final increment has converged when ``|f| <= atol``
-    at the current x and the Newton step from it, or the one that led to it, is small
+    ``fn_aux(x, lam, s) -> (f, aux)``, ``s`` the contact stiffness factor. Each
+    iteration evaluates f, its Jacobian and ``aux`` at the current x in one
+    forward-mode pass (the only trace of the residual in the compiled program). The
+    final increment has converged when ``|f| <= atol`` at the current x and the
+    Newton step from it, or the one that led to it, is small
     (``|dx_i| <= atol + rtol |x_i|``); a small step from x is still taken, so the
     returned x is accurate to about its square while f, aux and the Jacobian returned
     are those at the last evaluated x (no evaluation only to confirm convergence). An
@@ -280,7 +391,11 @@ def _newton(
     coordinate moves by more than ``max_step`` per iteration (the step is scaled
     down, its direction kept). With ``regularise`` (contact scenes) a singular
     Jacobian takes a Levenberg-shifted step instead of failing. ``contact_rows =
-    (start, depth, barrier)``: ``aux[start:]`` are contact penetrations d, and a
+    (start, depth, barrier, move)``: ``aux[start:]`` are contact penetrations d (after
+    the significant points' positions, 3 rows each, where ``move`` is not None: no
+    point then moves more than ``move`` per step by the step's linear prediction,
+    so that a rod cannot pass through another before the broad phase, whose
+    candidates alone have penetration rows, has seen them near), and a
     step is shortened so that, by its linear prediction, no contact ends deeper
     than ``max(depth, 8 d)`` (a free body does not jump through what it touches,
     nor a just-touching rod through a thin one; a contact that must go deeper
@@ -288,6 +403,16 @@ def _newton(
     half in one step (the fraction-to-boundary rule of interior-point methods,
     which keeps a barrier law's contacts apart). A step that made the residual
     grow halves the next (contact's kinks can make Newton cycle).
+
+    Stiffness continuation (contact): ``stages_of(f, aux, J_aux) -> (m, s0)``, from
+    the first evaluation (at full load and full stiffness), gives m stages after the
+    load increments: the increments run at the penalty laws' stiffness times s0,
+    then stage j = 1 .. m at ``s0 ** ((m - j) / m)``, the last at the user's
+    stiffness (each warm-started from the last, the intermediate ones to the loose
+    tolerances). A residual is also small when it is at the round-off level of its
+    terms, ``|f_i| <= 4 eps sum_j |J_ij| (1 + |x_j|)``: a penetration computed from
+    positions of size 1 carries an error of about eps, which a stiff law turns into
+    a force that no step can remove.
 
     Returns ``(x, f, aux, (J, J_aux), steps, status)`` (``J_aux = daux/dx``), status
     0 converged, 1 out of steps, 2 non-finite values, 3 failed linear solve.
@@ -298,19 +423,24 @@ def _newton(
 
     # Jitted: the shape probe below and the loop body share one trace.
     @jax.jit
-    def evaluate(x, lam):
-        return _jacobian_and_values(lambda x_: fn_aux(x_, lam), x)
+    def evaluate(x, lam, s):
+        return _jacobian_and_values(lambda x_: fn_aux(x_, lam, s), x)
 
-    shapes = jax.eval_shape(evaluate, x0, one)
+    shapes = jax.eval_shape(evaluate, x0, one, one)
     zeros = jax.tree_util.tree_map(lambda s: jnp.zeros(s.shape, s.dtype), shapes)
     int_ = jnp.asarray(0).dtype
     # carry: k (0: probe at full load), n, x, steps in this increment, total steps,
     # last step small, status (-1 running), J, (f, aux)
-    probe_first = n_inc_given is None or n_mult > 0
+    probe_first = n_inc_given is None or n_mult > 0 or stages_of is not None
     n_eq = x0.shape[0] - n_mult  # equilibrium rows (the rest: constraint errors)
+    eps = jnp.finfo(dtype).eps
     init = (
         jnp.zeros((), dtype) if probe_first else one,
-        one if n_inc_given is None else jnp.asarray(n_inc_given, dtype),
+        (
+            one if n_inc_given is None else jnp.asarray(n_inc_given, dtype),
+            jnp.zeros((), dtype),  # stiffness stages m
+            one,  # the first stiffness factor s0
+        ),
         x0,
         jnp.zeros((), int_),
         jnp.zeros((), int_),
@@ -325,9 +455,14 @@ def _newton(
         return c[6] < 0
 
     def body(c):
-        k, n, x, it, total, small, _, _, _, (trust, f_prev) = c
+        k, (n, m, s0), x, it, total, small, _, _, _, (trust, f_prev) = c
         probe = k == 0
-        (J, J_aux), (f, aux) = evaluate(x, jnp.where(probe, one, k / n))
+        # load factor and stiffness factor of increment k (the probe: both full)
+        lam = jnp.where(probe, one, jnp.minimum(k / n, 1.0))
+        s = jnp.where(
+            probe | (m == 0), one, s0 ** (jnp.clip(n + m - k, 0, m) / jnp.maximum(m, 1))
+        )
+        (J, J_aux), (f, aux) = evaluate(x, lam, s)
         if n_mult:
             # Least-squares multipliers at x0; the residual the increments are
             # chosen from is the one left after them.
@@ -340,12 +475,16 @@ def _newton(
             f_probe = f
         if n_inc_given is None:
             n = jnp.where(probe, n_inc_of(f_probe), n)
-        # With one increment the probe (full load at x0) is its first iteration
-        # (not with multipliers: they were just reset).
+        if stages_of is not None:
+            m_new, s0_new = stages_of(f_probe, aux, J_aux)
+            m = jnp.where(probe, m_new, m)
+            s0 = jnp.where(probe, s0_new, s0)
+        # With one increment at full stiffness the probe (full load at x0) is its
+        # first iteration (not with multipliers: they were just reset).
         if not n_mult:
-            k = jnp.where(probe & (n == 1), one, k)
+            k = jnp.where(probe & (n == 1) & (m == 0), one, k)
         iterate = k > 0
-        last = k >= n
+        last = k >= n + m
         tol_a = jnp.where(last, atol, 1e-4)
         tol_r = jnp.where(last, rtol, 1e-4)
         finite = jnp.all(jnp.isfinite(f)) & jnp.all(jnp.isfinite(J))
@@ -355,7 +494,13 @@ def _newton(
             # the directions contact will hold (a singular or nearly singular
             # tangent): Levenberg's shift, tiny against the stiffness, steps along
             # the load there (within the step caps) until contact holds it.
-            shift = 1e-9 * jnp.maximum(jnp.max(jnp.abs(Jf)), 1.0)
+            # The shift falls with the residual (Levenberg-Marquardt's mu ~ |f|), so
+            # that near the root the step is Newton's, whatever a stiff contact
+            # makes of max |J|.
+            shift = jnp.minimum(
+                1e-9 * jnp.maximum(jnp.max(jnp.abs(Jf)), 1.0),
+                jnp.maximum(jnp.max(jnp.abs(ff), initial=0.0), 1e-9),
+            )
             dx = jnp.linalg.solve(Jf + shift * jnp.eye(Jf.shape[0], dtype=dtype), ff)
             solved = jnp.all(jnp.isfinite(dx))
         else:
@@ -370,9 +515,16 @@ def _newton(
         # guess of a clamped-clamped rod diverged); near a root steps are far below.
         dx = dx / jnp.maximum(jnp.max(jnp.abs(dx[:n_eq]), initial=0.0) / max_step, 1.0)
         if contact_rows is not None:
-            start, depth, barrier = contact_rows
+            start, depth, barrier, move = contact_rows
+            J_aux_f = jnp.where(finite, J_aux, 0.0)
+            if move is not None:
+                n_p = 3 * n_points
+                dp = (J_aux_f[start : start + n_p] @ dx).reshape(-1, 3)
+                moved = jnp.max(jnp.sqrt(jnp.sum(dp * dp, axis=1)), initial=0.0)
+                dx = dx / jnp.maximum(moved / move, 1.0)
+                start = start + n_p
             d = jnp.where(jnp.isfinite(aux[start:]), aux[start:], 0.0)
-            deeper = -(jnp.where(finite, J_aux[start:], 0.0) @ dx)
+            deeper = -(J_aux_f[start:] @ dx)
             room = jnp.maximum(depth, 8.0 * d) - d  # > 0
             if barrier:  # a gap closes by at most half per step (interior points)
                 room = jnp.where(d < 0, -0.5 * d, room)
@@ -380,7 +532,9 @@ def _newton(
             dx = dx / jnp.maximum(jnp.max(ratio, initial=0.0), 1.0)
         solved = solved & jnp.all(jnp.isfinite(dx))
         dx_small = jnp.max(jnp.abs(dx) / (tol_a + tol_r * jnp.abs(x)), initial=0.0) <= 1
-        f_small = jnp.max(jnp.abs(f), initial=0.0) <= tol_a
+        # the residual's round-off level (see above)
+        f_floor = 4.0 * eps * jnp.max(jnp.abs(Jf) @ (1.0 + jnp.abs(x)), initial=0.0)
+        f_small = jnp.max(jnp.abs(f), initial=0.0) <= jnp.maximum(tol_a, f_floor)
         # Final increment: converged when the residual here is within atol and so is
         # the Newton step from here (or the last step, which led here); a small step
         # from here is still taken (x then accurate to about its square), and f, aux,
@@ -403,13 +557,12 @@ def _newton(
         if regularise:
             # Contact's closest points and shares switch: Newton can cycle around
             # a kink of the tangent. A step that made |f| grow halves the next.
-            trust = jnp.where(
-                iterate & (f_norm > f_prev), 0.5 * trust, jnp.minimum(2.0 * trust, 1.0)
-            )
+            grew = iterate & (f_norm > f_prev) & (f_prev > f_floor)  # not round-off
+            trust = jnp.where(grew, 0.5 * trust, jnp.minimum(2.0 * trust, 1.0))
             dx = trust * dx
         return (
             jnp.where(~iterate | advance, k + 1, k),
-            n,
+            (n, m, s0),
             jnp.where(step, x - dx, x),
             jnp.where(step & ~advance, it + 1, 0),
             total + step.astype(int_),
@@ -478,23 +631,29 @@ def _solve_statics(
     # so that the solve can run on stop-gradient copies and the implicit derivative
     # sees them all. aux: the unscaled residual (all rows).
     def fn_aux(x, args):
-        data_, lam, u_, dyn_, q_p0_, t_ = args
+        data_, lam, u_, dyn_, q_p0_, t_, s_ = args
         linkage_ = eqx.combine(dyn_, static)
+        if s_ is not None and linkage_.contact is not None:
+            linkage_ = _softened(linkage_, s_)
         q_p = q_p0_ + lam * (u_[ui] - q_p0_) if len(qi) else None
         return scaled_equilibrium(linkage_, data_, x, t_, lam, u_, q_p)
 
     def fn(x, args):
         return fn_aux(x, args)[0]
 
-    def with_load(args_, lam):
-        """The residual's args from ``(data, u, dyn, q_p0, t)`` and the load factor."""
+    def with_load(args_, lam, s_=None):
+        """The residual's args from ``(data, u, dyn, q_p0, t)`` and the factors.
+
+        ``lam`` the load factor, ``s_`` the contact stiffness factor (None: the
+        user's laws).
+        """
         data_, u_, dyn_, q_p0_, t_ = args_
-        return (data_, lam, u_, dyn_, q_p0_, t_)
+        return (data_, lam, u_, dyn_, q_p0_, t_, s_)
 
     x0 = jnp.concatenate([q0[free], jnp.zeros(n_c, q0.dtype)])
     args = (data, u, dyn, q_p0, t)
     # no Newton step makes a contact deeper than this (or 8 times its depth)
-    contact_cap = None
+    contact_cap = r_min = None
     if linkage.contact is not None:
         r_min = smallest_radius(linkage)
         contact_cap = 10.0 * linkage.contact.law.smoothing
@@ -513,6 +672,17 @@ def _solve_statics(
             size = jnp.maximum(size, 4.0 * jnp.max(jump) / load_increment)
         return jax.lax.stop_gradient(jnp.clip(jnp.ceil(size), 1, max_load_steps))
 
+    # rod pairs: no point moves more than half the smallest radius per step
+    move, n_points = None, 0
+    if _limits_moves(linkage):
+        move = jax.lax.stop_gradient(0.5 * r_min)
+        n_points = jax.eval_shape(poses, data, q0).shape[0]
+    stages_of = None
+    if linkage.contact is not None and _has_penalty(linkage.contact):
+        stages_of = _stiffness_stages(
+            linkage, data, q0, free, contact_cap, r_min, STIFFNESS_FACTOR, 3 * n_points
+        )
+
     # The solve sees no gradients: they come from the implicit function theorem at
     # the converged solution (below).
     args_ng = jax.lax.stop_gradient(args)
@@ -520,7 +690,7 @@ def _solve_statics(
         # Load increments and Newton iterations in one loop with one trace of the
         # residual and its Jacobian (the compile time is about that trace).
         x_star, f_star, r_star, (J, J_r), steps, status = _newton(
-            lambda x, lam: fn_aux(x, with_load(args_ng, lam)),
+            lambda x, lam, s_: fn_aux(x, with_load(args_ng, lam, s_)),
             jax.lax.stop_gradient(x0),
             args_ng,
             n_inc=(load_steps, n_inc_of),
@@ -533,7 +703,9 @@ def _solve_statics(
             regularise=linkage.contact is not None,
             contact_rows=None
             if linkage.contact is None
-            else (n, contact_cap, _has_barrier(linkage.contact)),
+            else (n, contact_cap, _has_barrier(linkage.contact), move),
+            stages_of=stages_of,
+            n_points=n_points,
         )
         result = RESULTS.where(
             status == 0,

@@ -1,0 +1,89 @@
+"""Contact statics converges at any penalty stiffness, towards the rigid limit.
+
+Three scenes (tests/stiff_contact_scenes.py: a heavy cantilever lying on a floor, a
+rod laid over a sphere, two crossing rods) start out of contact and are solved with
+the default settings at stiffnesses 1e4 .. 1e10 (per length on the rods' obstacle
+contacts, per point between the rods). The solve starts at a softer law where the
+load would otherwise meet a contact far stiffer than what carries it, and raises the
+stiffness tenfold per stage to the user's (``solve_statics``' stiffness
+continuation). Truths checked:
+
+- every solve succeeds within the default step budget;
+- the deepest penetration falls as the stiffness rises, as ``f / k + delta / 2``
+  does for the smoothed penalty (``delta`` = 1e-8 m);
+- the centre line converges to the rigid-contact limit: its change over the two
+  decades 1e8 -> 1e10 is at most a tenth of its change over 1e6 -> 1e8 (a penalty
+  solution's distance from the rigid one goes as 1/k: a hundredth expected; the
+  smoothing's delta / 2 offset and Newton's tolerance leave less);
+- the contact carries the load: the floor holds most of the cantilever's weight.
+"""
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from stiff_contact_scenes import SCENES, centre_line
+
+import sorojax as sj
+
+STIFFNESSES = (1e4, 1e6, 1e8, 1e10)
+
+
+# the sphere in the default run; the floor's 8 divisions and the rod pair's compile
+# (20 and 30 s on 2 cores) in the slow one
+PARAMS = [
+    pytest.param(name, marks=() if name == "rod_over_sphere" else pytest.mark.slow)
+    for name in sorted(SCENES)
+]
+
+
+@pytest.fixture(scope="module", params=PARAMS)
+def solved(request):
+    build = SCENES[request.param]
+    out = {}
+    for k in STIFFNESSES:
+        lk = build(jnp.asarray(k))
+        sol = sj.solve_statics(lk, throw=False, warn_unstable=False)
+        out[k] = (lk, sol)
+    return request.param, out
+
+
+def test_converges_at_every_stiffness(solved):
+    name, out = solved
+    for k, (_, sol) in out.items():
+        assert sol.result == sj.RESULTS.successful, (name, k, sol.result)
+        assert int(sol.num_steps) < 64 * 20, (name, k, int(sol.num_steps))
+        assert float(sol.residual_norm) < 1e-6, (name, k)
+
+
+def test_penetration_falls_with_stiffness(solved):
+    name, out = solved
+    deepest = [float(jnp.max(out[k][1].contact.penetration)) for k in STIFFNESSES]
+    assert all(d > 0 for d in deepest), (name, deepest)  # in contact at every k
+    for soft, stiff in zip(deepest, deepest[1:], strict=False):
+        assert stiff < 0.2 * soft, (name, deepest)
+    # at 1e10 the penetration is the smoothing's delta / 2 plus f / k: nanometres
+    assert deepest[-1] < 1e-7, (name, deepest)
+
+
+def test_centre_line_converges_to_the_rigid_limit(solved):
+    name, out = solved
+    c = {k: centre_line(lk, sol.q) for k, (lk, sol) in out.items()}
+    first = np.max(np.abs(c[1e8] - c[1e6]))
+    second = np.max(np.abs(c[1e10] - c[1e8]))
+    assert first > 0
+    assert second < 0.1 * first, (name, first, second)
+
+
+def test_contact_carries_the_load(solved):
+    name, out = solved
+    lk, sol = out[1e10]
+    weight = 1000.0 * np.pi * 0.01**2 * 9.81  # N per metre of rod
+    fz = np.asarray(sol.contact.total_force())[2]
+    if name == "crossing_rods":  # action and reaction: the pair's forces cancel
+        assert abs(fz) < 1e-9 * weight
+        # the lower rod holds the upper one up (forces on the upper, link A), by
+        # a share of its weight: the clamp holds the rest
+        up = float(np.sum(np.asarray(sol.contact.force)[:, 2]))
+        assert 0.3 * weight < up < 2.0 * weight, up
+    else:  # the floor or sphere holds part of the weight; the clamp the rest
+        assert 0.3 * weight < fz < weight, fz
