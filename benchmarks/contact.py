@@ -29,12 +29,19 @@ Five measurements, all in this process (persistent compilation cache off):
    cantilever (statics: errors, Newton iterations, closest approach) and on the
    rod dropped onto the floor (dynamics: Tsit5 and ROS34PW2 steps, warm time,
    deepest penetration or smallest gap, energy drift).
+8. ``statics_stiffness``: contact statics from the reference shape at penalty
+   stiffnesses 1e3 .. 1e10 with the default settings, on the three scenes of
+   ``tests/stiff_contact_scenes.py`` (a heavy cantilever on a floor, a rod over a
+   sphere, two crossing rods): result, Newton iterations, stiffness stages, deepest
+   penetration, the centre line's change from the decade below (its convergence
+   to the rigid limit), first and warm call times.
 
 Run::
 
     .venv/bin/python benchmarks/contact.py [--repeats 5] [--part laws ...]
 
-Writes ``benchmarks/results/contact.json`` and ``benchmarks/results/contact.png``.
+Writes ``benchmarks/results/contact.json`` and ``benchmarks/results/contact.png`` (and
+the docs' ``docs/img/contact-statics-stiffness.png``).
 """
 
 import argparse
@@ -61,6 +68,7 @@ from contact_reference import (  # noqa: E402
     equivalent_touchdown,
     heavy_cantilever_on_floor,
 )
+from stiff_contact_scenes import SCENES, centre_line  # noqa: E402
 
 G = 9.81
 
@@ -353,13 +361,78 @@ def laws(repeats):
     return out
 
 
+def statics_stiffness(repeats):
+    out = []
+    for name, build in SCENES.items():
+        prev = None
+        for k in 10.0 ** np.arange(3, 11):
+            lk = build(jnp.asarray(k))
+            t0 = time.perf_counter()
+            sol = sj.solve_statics(lk, throw=False, warn_unstable=False)
+            first = time.perf_counter() - t0
+            warm, _ = timed(
+                lambda lk=lk: sj.solve_statics(lk, throw=False, warn_unstable=False).q,
+                repeats=repeats,
+                warmup=False,
+            )
+            c = centre_line(lk, sol.q)
+            pen = np.asarray(sol.contact.penetration)
+            row = dict(
+                scene=name, stiffness=float(k), result=str(sol.result),
+                converged=bool(sol.result == sj.RESULTS.successful),
+                newton=int(sol.num_steps), residual=float(sol.residual_norm),
+                deepest_penetration=float(pen.max()),
+                centre_line_change_m=(
+                    None if prev is None else float(np.max(np.abs(c - prev)))
+                ),
+                first_call_s=first, warm_median_s=warm,
+            )  # fmt: skip
+            prev = c
+            out.append(row)
+            print(f"statics {name:20s} k {k:7.0e}: {row['newton']:4d} Newton, "
+                  f"{'converged' if row['converged'] else row['result']}, deepest "
+                  f"{row['deepest_penetration']:.2e} m, change "
+                  f"{row['centre_line_change_m'] or float('nan'):.2e} m, warm "
+                  f"{warm:.2f} s")  # fmt: skip
+    return out
+
+
+def statics_panel(ax, ss):
+    """Newton iterations against the stiffness, a line per scene (x: failed)."""
+    for name in dict.fromkeys(r["scene"] for r in ss):
+        rows = [r for r in ss if r["scene"] == name]
+        ax.plot([r["stiffness"] for r in rows], [r["newton"] for r in rows], "o-",
+                label=name.replace("_", " "))  # fmt: skip
+        bad = [r for r in rows if not r["converged"]]
+        ax.plot([r["stiffness"] for r in bad], [r["newton"] for r in bad], "kx")
+    ax.set(xscale="log", xlabel="penalty stiffness [N/m^2 on rods, N/m rod pairs]",
+           ylabel="Newton iterations (default settings)",
+           title="contact statics from the reference shape")  # fmt: skip
+    if ss:
+        ax.set_ylim(bottom=0)
+        ax.legend(fontsize=8)
+
+
+def statics_chart(ss, path):
+    """The docs' figure of :func:`statics_panel`."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 3.8))
+    statics_panel(ax, ss)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
 def chart(res, path):
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(1, 5, figsize=(21, 3.8))
+    fig, ax = plt.subplots(1, 6, figsize=(25, 3.8))
     c = res["cost"]
     ax[0].plot([r["samples"] for r in c[1:]], [r["warm_median_s"] * 1e6 for r in c[1:]],
                "o-", label="with contact")  # fmt: skip
@@ -411,6 +484,7 @@ def chart(res, path):
     ax[4].set(yscale="log", ylabel="steps for 1 s",
               title="rod dropped: law (deepest penetration)")  # fmt: skip
     ax[4].legend()
+    statics_panel(ax[5], res.get("statics_stiffness", []))
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 
@@ -423,6 +497,7 @@ PARTS = {
     "fixed_steps": lambda a: fixed_steps(),
     "touchdown": lambda a: touchdown(),
     "laws": lambda a: laws(a.repeats),
+    "statics_stiffness": lambda a: statics_stiffness(a.repeats),
 }
 
 
@@ -442,6 +517,11 @@ def main():
     res["environment"] = env
     out.write_text(json.dumps(res, indent=1))
     chart(res, ROOT / "benchmarks" / "results" / "contact.png")
+    if res.get("statics_stiffness"):
+        statics_chart(
+            res["statics_stiffness"],
+            ROOT / "docs" / "img" / "contact-statics-stiffness.png",
+        )
     print("wrote", out)
 
 

@@ -58,10 +58,11 @@ driven start is a prismatic joint whose coordinate is prescribed. Contact laws a
 sized from the scene's loads (:func:`_laws`: stiffness for :data:`PENETRATION`
 between rods and :data:`OBSTACLE_PENETRATION` against obstacles, critical damping,
 the larger friction coefficient, static and kinetic alike).
-Frictionless quasi-static scenes (crossing) settle by the damped dynamics of the
-statics' model (:data:`CONTACT_STATICS`) for :data:`SETTLE_FRACTION` of the
-duration, at constant linearly implicit Euler steps (:data:`SETTLE_SOLVER`), then
-Newton's method finds the equilibrium from there, which later frames show. A
+Frictionless quasi-static scenes (crossing) solve the contact statics from the
+initial shapes (:data:`CONTACT_STATICS`); were that equilibrium unstable, they
+settle by the damped dynamics for :data:`SETTLE_FRACTION` of the duration, at
+constant linearly implicit Euler steps (:data:`SETTLE_SOLVER`), and Newton's method
+finds the equilibrium from there, which later frames show. A
 heaping rope (self-contact: the pile) runs the damped dynamics with Tsit5 and softer
 laws (:data:`HEAP_PENETRATION`, :data:`HEAP_FLOOR_PENETRATION`,
 :data:`HEAP_STICK_VELOCITY`): every pair of its
@@ -226,27 +227,21 @@ CONTACT_RTOL = 1e-2
 capstan's light end moves the same to 2e-7 m over the first 0.1 s at 1e-2 and 1e-3,
 in 353 and 1249 steps."""
 
-CONTACT_STATICS = False
-"""Whether frictionless quasi-static contact scenes use the contact statics (a
-damped fall into contact, then Newton with a stiffness continuation). Off: from
-that fall Newton's method did not converge on the crossing ropes at n = 51
-(scaled residual 1.5 after 256 steps), so they settle by the damped dynamics of
-the same model (orders and divisions of the statics) instead."""
+CONTACT_STATICS = True
+"""Whether frictionless quasi-static contact scenes (crossing) solve the contact
+statics from the initial shapes (:func:`sorojax.solve_statics`: its stiffness
+continuation from a softer law, and no point moving more than half a radius per
+Newton step while the rod pairs' broad phase has not yet seen them near). On the
+crossing at 51 elements: 26 Newton steps, 1.5 s warm. Off: they settle by the
+damped dynamics of the same model (orders and divisions of the statics) instead."""
 
-STIFFNESS_STAGES = (10.0, 1.0)
-"""Contact statics: the contact stiffness over these factors in turn, each solve
-starting from the last one's equilibrium."""
-
-TOUCH_TIMES = 3.0
-"""Rods of a contact statics first fall (damped) for this many times the free-fall
-time of their initial gap (:meth:`SorojaxSolver._touch`)."""
-
-STATICS_MAX_STEPS = 256
-"""Newton steps of a contact statics (its steps are shortened near contact)."""
+STATICS_MAX_STEPS = 64
+"""Newton steps per increment of a contact statics."""
 
 SETTLE_FRACTION = 0.5
-"""Frictionless quasi-static rod-pair scenes (crossing) settle by the damped
-dynamics for this fraction of the duration; Newton's method then finds the
+"""Frictionless quasi-static rod-pair scenes (crossing) whose contact statics finds
+an unstable equilibrium settle by the damped dynamics for this fraction of the
+duration; Newton's method then finds the
 equilibrium from there, which every later frame shows (as in the statics path).
 The damped ropes approach it along a very soft mode (smallest eigenvalue of the
 crossing's tangent 3.5e-4 at 50 elements) and still creep at 0.7 mm/s at the end
@@ -1209,22 +1204,6 @@ def _build_scene(scenario: Scenario, n_elements: int, plans: list[_Plan]) -> _Mo
     )
 
 
-def _softened(linkage: sj.Linkage, factor: float) -> sj.Linkage:
-    """``linkage`` with its contact stiffnesses divided by ``factor``."""
-    if factor == 1.0 or linkage.contact is None:
-        return linkage
-    c = linkage.contact
-
-    def soften(law):
-        return eqx.tree_at(lambda lw: lw.stiffness, law, law.stiffness / factor)
-
-    return eqx.tree_at(
-        lambda lk: (lk.contact.law, lk.contact.obstacle_laws),
-        linkage,
-        (soften(c.law), tuple(soften(lw) for lw in c.obstacle_laws)),
-    )
-
-
 @functools.lru_cache(maxsize=32)
 def _mass_damping_points(rate: float, per_point: tuple[tuple[float, ...], ...]):
     """Hook ``-rate M_s eta`` with a section inertia per point (0 off the rods)."""
@@ -1410,11 +1389,12 @@ class SorojaxSolver:
                 )
                 entry.update(solver=solver, rtol=rtol, atol=atol, adaptive=True)
             if contact and _settles(scenario):
+                entry["if_unstable"] = "the settling below, then Newton"
                 entry["settle"] = (
                     f"{SETTLE_SOLVER}, constant steps of 1/{SETTLE_STEPS_PER_FRAME} "
                     f"of a frame interval (x time_step_scale) to {SETTLE_FRACTION:g} "
-                    "of the duration; the solver above if Newton finds no equilibrium "
-                    "from there"
+                    "of the duration; the damped dynamics to the end if Newton finds "
+                    "no equilibrium from there"
                 )
                 entry["then"] = (
                     f"solve_statics from the state at {SETTLE_FRACTION:g} of the "
@@ -1491,8 +1471,7 @@ class SorojaxSolver:
             mdl = _build_scene(scenario, n_elements, plans)
             out = None
             if plans[0].method == "statics":
-                q = self._touch(scenario, n_elements, plans, mdl)
-                out = self._statics(mdl, scenario, len(times), STATICS_MAX_STEPS, q)
+                out = self._statics(mdl, scenario, len(times), STATICS_MAX_STEPS)
                 if out is None:  # unstable: the damped dynamics finds a stable one
                     plans = [dataclasses.replace(p, method="damped") for p in plans]
                     mdl = _build_scene(scenario, n_elements, plans)
@@ -1544,37 +1523,6 @@ class SorojaxSolver:
             np.concatenate([d1, np.repeat(np.asarray(de)[None], later, 0)]),
         )
 
-    def _touch(self, scenario: Scenario, n_elements: int, plans, mdl: _Model):
-        """Coordinates after the rods of a contact statics have come into contact.
-
-        Rods that start apart and settle onto each other: Newton's method from the
-        start sees no contact in its tangent and can step the rods through each
-        other, so the same model, damped (mass-proportional, the quasi-static
-        dynamics), first falls for :data:`TOUCH_TIMES` times the free-fall time of
-        the initial gap; the statics starts there, in contact.
-        """
-        if not _pairs(scenario):
-            return mdl.q0
-        rods = scenario.rods
-        gap = min(
-            _polyline_gap(
-                np.asarray(rods[a].centerline, float),
-                np.asarray(rods[b].centerline, float),
-            )
-            - rods[a].radius
-            - rods[b].radius
-            for a, b in _pairs(scenario)
-        )
-        g = float(np.linalg.norm(scenario.gravity))
-        if gap <= 0 or g == 0:
-            return mdl.q0
-        t1 = TOUCH_TIMES * math.sqrt(2.0 * gap / g)
-        damped = [dataclasses.replace(p, method="damped") for p in plans]
-        dmdl = _build_scene(scenario, n_elements, damped)
-        ts = np.linspace(0.0, t1, FRAME_CHUNK + 1)
-        (pos, _), y = self._dynamics([dmdl], [0], ts, contact=True, state=True)
-        return jnp.asarray(y[0, : mdl.linkage.n_dof])
-
     def _statics(
         self,
         mdl: _Model,
@@ -1587,21 +1535,14 @@ class SorojaxSolver:
 
         None when the equilibrium Newton's method found is unstable.
         """
-        q = mdl.q0 if q0 is None else q0
-        stages = STIFFNESS_STAGES if mdl.laws is not None else (1.0,)
-        for soft in stages:
-            # a contact stiffness continuation: each Newton solve starts in contact,
-            # from the softer law's equilibrium (the law's numbers are arrays: one
-            # compiled program serves every stage)
-            sol = sj.solve_statics(
-                _softened(mdl.linkage, soft),
-                q,
-                throw=False,
-                warn_unstable=False,
-                max_steps=max_steps,
-                load_steps=None if mdl.laws is None else 1,
-            )
-            q = sol.q
+        sol = sj.solve_statics(
+            mdl.linkage,
+            mdl.q0 if q0 is None else q0,
+            throw=False,
+            warn_unstable=False,
+            max_steps=max_steps,
+            load_steps=None if mdl.laws is None else 1,
+        )
         if not (sol.result == sj.RESULTS.successful) or not np.all(np.isfinite(sol.q)):
             raise Diverged(
                 "sorojax.solve_statics did not converge (scaled residual "
