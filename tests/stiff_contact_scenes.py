@@ -14,6 +14,10 @@ shape, out of contact:
   MPa) 5 cm above the stiffer lower one (E 1 GPa), each with two bending modes (4
   divisions of order 3): the upper falls onto the lower and presses on it at one
   point (a rod pair, k per point, N/m).
+- :func:`ball_in_tube`: a 5 g ball (radius 8 mm, on a vertical prismatic joint) in
+  the middle of a soft horizontal tube (0.3 m, bore radius 1 cm, E 1 MPa, two
+  bending modes of order 2) that sags under its own weight: the ball comes to rest
+  on the bore (a tube, k per point, N/m).
 """
 
 import jax.numpy as jnp
@@ -77,10 +81,36 @@ def crossing_rods(k, E=1e8, rho=1000.0, drop=0.0) -> sj.Linkage:
     )  # fmt: skip
 
 
+BALL_MASS = 0.005  # kg
+
+
+def ball_in_tube(k, E=1e6, rho=1000.0, height=0.0) -> sj.Linkage:
+    """``height`` raises the ball's joint [m] (an obstacle's position)."""
+    tube = sj.SoftLink(
+        [sj.Division(0.3, sj.AnnularSection(0.014, 0.01),
+                     sj.LegendreBasis((0, 1, 1, 0, 0, 0), 2))],
+        sj.Material(E=E, poisson=0.5, rho=rho),
+    )  # fmt: skip
+    ball = sj.RigidLink(
+        sj.Joint("P", axis=(0, 0, 1)), length=0.01, mass=BALL_MASS,
+        inertia=np.diag([1e-7] * 3), g_i=np.eye(4), g_f=np.eye(4),
+    )  # fmt: skip
+    placements = jnp.stack(
+        [jnp.eye(4), jnp.asarray(_placed(x=0.15)).at[2, 3].add(height)]
+    )
+    law = sj.ContactLaw(stiffness=k, smoothing=SMOOTHING)
+    return sj.Linkage(
+        [tube, ball], parents=(0, 0), placements=placements, gravity=(0, 0, -G),
+        contact=sj.Contact((), law, shapes={2: sj.ContactSphere(0.008)},
+                           inside=[(1, 2)], spacing=0.01),
+    )  # fmt: skip
+
+
 SCENES = {
     "cantilever_on_floor": cantilever_on_floor,
     "rod_over_sphere": rod_over_sphere,
     "crossing_rods": crossing_rods,
+    "ball_in_tube": ball_in_tube,
 }
 """name: builder(k, ...)."""
 

@@ -1,7 +1,7 @@
 """Contact statics converges at any penalty stiffness, towards the rigid limit.
 
-Three scenes (tests/stiff_contact_scenes.py: a heavy cantilever lying on a floor, a
-rod laid over a sphere, two crossing rods) start out of contact and are solved with
+Four scenes (tests/stiff_contact_scenes.py: a heavy cantilever lying on a floor, a
+rod laid over a sphere, two crossing rods, a ball resting in a sagging tube) start out of contact and are solved with
 the default settings at stiffnesses 1e4 .. 1e10 (per length on the rods' obstacle
 contacts, per point between the rods). The solve starts at a softer law where the
 load would otherwise meet a contact far stiffer than what carries it, and raises the
@@ -21,15 +21,15 @@ continuation). Truths checked:
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from stiff_contact_scenes import SCENES, centre_line
+from stiff_contact_scenes import BALL_MASS, SCENES, centre_line
 
 import sorojax as sj
 
 STIFFNESSES = (1e4, 1e6, 1e8, 1e10)
 
 
-# the sphere in the default run; the floor's 8 divisions and the rod pair's compile
-# (20 and 30 s on 2 cores) in the slow one
+# the sphere in the default run; the floor's 8 divisions, the rod pair and the tube
+# (compiles of 20, 30 and 10 s on 2 cores) in the slow one
 PARAMS = [
     pytest.param(name, marks=() if name == "rod_over_sphere" else pytest.mark.slow)
     for name in sorted(SCENES)
@@ -79,7 +79,10 @@ def test_contact_carries_the_load(solved):
     lk, sol = out[1e10]
     weight = 1000.0 * np.pi * 0.01**2 * 9.81  # N per metre of rod
     fz = np.asarray(sol.contact.total_force())[2]
-    if name == "crossing_rods":  # action and reaction: the pair's forces cancel
+    if name == "ball_in_tube":  # the bore carries the whole ball
+        force = float(np.sum(np.asarray(sol.contact.force)[:, 2]))
+        np.testing.assert_allclose(abs(force), BALL_MASS * 9.81, rtol=1e-6)
+    elif name == "crossing_rods":  # action and reaction: the pair's forces cancel
         assert abs(fz) < 1e-9 * weight
         # the lower rod holds the upper one up (forces on the upper, link A), by
         # a share of its weight: the clamp holds the rest
