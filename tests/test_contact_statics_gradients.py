@@ -10,10 +10,13 @@ equals converged central differences (relative steps 1e-4: measured agreement
 forward mode equals reverse mode to round-off.
 """
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from stiff_contact_scenes import SCENES
 
 import sorojax as sj
 
@@ -61,3 +64,57 @@ def test_contact_statics_jacobian_equals_central_differences():
         assert err < 1e-6, f"d/d{name}: reverse mode vs central differences {err:.1e}"
         np.testing.assert_allclose(jac_fwd[:, i], jac[:, i], rtol=0,
                                    atol=1e-10 * scale)  # fmt: skip
+
+
+# The scenes of tests/stiff_contact_scenes.py at a stiff penalty: name -> (E [Pa],
+# rho [kg/m^3], k [N/m^2 on the obstacles, N/m between the rods], the obstacle's
+# position [m]), and the central differences' steps (relative to the parameter;
+# the position's per metre of rod), chosen by measurement (module docstring).
+STIFF = {
+    "cantilever_on_floor": ((1e6, 1000.0, 1e8, 0.0), (1e-3, 1e-3, 1e-2, 1e-4)),
+    "rod_over_sphere": ((1e7, 1000.0, 1e8, -0.01), (1e-2, 1e-2, 1e-2, 1e-3)),
+    "crossing_rods": ((1e8, 1000.0, 1e8, 0.0), (1e-2, 1e-2, 1e-2, 1e-3)),
+}
+
+
+def _stiff_outputs(name, p):
+    E, rho, k, position = p
+    sol = sj.solve_statics(SCENES[name](k, E, rho, position), throw=False)
+    if name == "crossing_rods":  # the force on the upper rod
+        force = jnp.sum(sol.contact.force[:, 2])
+    else:
+        force = sol.contact.total_force()[2]
+    return jnp.concatenate([sol.q, force[None]]), sol.result
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(STIFF))
+def test_stiff_contact_statics_jacobian_equals_central_differences(name):
+    values, steps = STIFF[name]
+    p0 = jnp.asarray(values)
+    out = jax.jit(functools.partial(_stiff_outputs, name))
+    _, result = out(p0)
+    assert result == sj.RESULTS.successful
+    jac = jax.jit(jax.jacrev(lambda p: _stiff_outputs(name, p)[0]))(p0)
+    jac_fwd = jax.jit(jax.jacfwd(lambda p: _stiff_outputs(name, p)[0]))(p0)
+    failures = []
+    for i, param in enumerate(("E", "rho", "stiffness", "position")):
+        h = steps[i] * (abs(values[i]) if i < 3 else 1.0)
+        central = []
+        for step in (h, 2 * h):
+            e = jnp.zeros(4).at[i].set(step)
+            (plus, ok_plus), (minus, ok_minus) = out(p0 + e), out(p0 - e)
+            assert ok_plus == sj.RESULTS.successful, (name, param, step)
+            assert ok_minus == sj.RESULTS.successful, (name, param, -step)
+            central.append((plus - minus) / (2 * step))
+        fd = (4 * central[0] - central[1]) / 3  # Richardson: fourth order in h
+        scale = float(jnp.max(jnp.abs(fd)))
+        assert scale > 0, f"{name}: the solution does not depend on {param}"
+        err = float(jnp.max(jnp.abs(jac[:, i] - fd))) / scale
+        fwd = float(jnp.max(jnp.abs(jac_fwd[:, i] - jac[:, i]))) / scale
+        if not (err < 1e-6 and fwd < 1e-10):
+            failures.append(
+                f"d/d{param}: reverse mode vs central differences {err:.1e}, "
+                f"forward vs reverse {fwd:.1e} (of the column's scale {scale:.3e})"
+            )
+    assert not failures, f"{name}: " + "; ".join(failures)
