@@ -247,20 +247,19 @@ def _jacobian_and_values(f_aux, x):
     return jax.jacfwd(f_and_out, has_aux=True)(x)
 
 
-def _has_barrier(contact) -> bool:
-    """Whether any of the contact's laws is a barrier."""
+def _has_law(contact, kind: str) -> bool:
+    """Whether any of the contact's laws is of ``kind`` ("penalty", "barrier")."""
     laws = (contact.law, *contact.obstacle_laws)
-    return any(law.kind == "barrier" for law in laws)
+    return any(law.kind == kind for law in laws)
+
+
+def _penalty_stiffness(law) -> Array:
+    """The law's k if it is a penalty, else 0 (continued and estimated: penalties)."""
+    return law.stiffness if law.kind == "penalty" else jnp.zeros(())
 
 
 STIFFNESS_FACTOR = 10.0
 """Largest factor between the contact stiffnesses of two continuation stages."""
-
-
-def _has_penalty(contact) -> bool:
-    """Whether any of the contact's laws is a penalty."""
-    laws = (contact.law, *contact.obstacle_laws)
-    return any(law.kind == "penalty" for law in laws)
 
 
 def _softened(linkage: Linkage, s) -> Linkage:
@@ -285,18 +284,13 @@ def _row_stiffness(linkage: Linkage, n_rows: int) -> Array:
     the law's k per point (rod pairs, tubes); 0 for barrier laws.
     """
     contact = linkage.contact
-
-    def k_of(law):
-        return law.stiffness if law.kind == "penalty" else jnp.zeros(())
-
     parts = []
     if contact.obstacles:
         w = obstacle_samples(linkage).weight
-        parts = [
-            k_of(contact.obstacle_law(i)) * w for i in range(len(contact.obstacles))
-        ]
+        laws = [contact.obstacle_law(i) for i in range(len(contact.obstacles))]
+        parts = [_penalty_stiffness(law) * w for law in laws]
     n_obs = sum(p.shape[0] for p in parts)
-    parts.append(jnp.full((n_rows - n_obs,), k_of(contact.law)))
+    parts.append(jnp.full((n_rows - n_obs,), _penalty_stiffness(contact.law)))
     return jnp.concatenate(parts)
 
 
@@ -313,8 +307,6 @@ def _stiffness_stages(linkage, data, q0, free, depth_cap, r_min, factor, skip):
     caps, at most 5 % of the smallest radius), the solve starts at the stiffness
     that puts it there and multiplies it by at most ``factor`` per stage.
     """
-    if factor is None:
-        return None
     nf = len(free)
     n = linkage.n_dof
     elastic = jax.lax.stop_gradient(jnp.abs(data.K @ q0)[free])
@@ -336,9 +328,7 @@ def _stiffness_stages(linkage, data, q0, free, depth_cap, r_min, factor, skip):
             P = J_aux[n : n + skip, :nf].reshape(-1, 3, nf)
             P = jnp.where(jnp.isfinite(P), P, 0.0)
             lever = jnp.max(jnp.sqrt(jnp.sum(P * P, axis=1)), axis=0)
-            k_pair = linkage.contact.law.stiffness
-            if linkage.contact.law.kind != "penalty":
-                k_pair = jnp.zeros(())
+            k_pair = _penalty_stiffness(linkage.contact.law)
             reach = jnp.maximum(reach, jnp.max(k_pair * lever, initial=0.0))
         depth = load / jnp.where(reach > 0, reach, 1.0)
         s0 = jnp.where((reach > 0) & (load > 0), depth / target, 1.0)
@@ -364,7 +354,6 @@ def _newton(
     regularise=False,
     contact_rows=None,
     stages_of=None,
-    n_points=0,
 ):
     """Newton's method over load increments lambda = k / n, k = 1 .. n, one loop.
 
@@ -392,8 +381,9 @@ def _newton(
     down, its direction kept). With ``regularise`` (contact scenes) a singular
     Jacobian takes a Levenberg-shifted step instead of failing. ``contact_rows =
     (start, depth, barrier, move)``: ``aux[start:]`` are contact penetrations d (after
-    the significant points' positions, 3 rows each, where ``move`` is not None: no
-    point then moves more than ``move`` per step by the step's linear prediction,
+    the significant points' positions, 3 rows each, where ``move = (distance,
+    n_points)`` is not None: no point then moves more than that distance per step
+    by the step's linear prediction,
     so that a rod cannot pass through another before the broad phase, whose
     candidates alone have penetration rows, has seen them near), and a
     step is shortened so that, by its linear prediction, no contact ends deeper
@@ -518,10 +508,11 @@ def _newton(
             start, depth, barrier, move = contact_rows
             J_aux_f = jnp.where(finite, J_aux, 0.0)
             if move is not None:
+                distance, n_points = move
                 n_p = 3 * n_points
                 dp = (J_aux_f[start : start + n_p] @ dx).reshape(-1, 3)
                 moved = jnp.max(jnp.sqrt(jnp.sum(dp * dp, axis=1)), initial=0.0)
-                dx = dx / jnp.maximum(moved / move, 1.0)
+                dx = dx / jnp.maximum(moved / distance, 1.0)
                 start = start + n_p
             d = jnp.where(jnp.isfinite(aux[start:]), aux[start:], 0.0)
             deeper = -(J_aux_f[start:] @ dx)
@@ -673,15 +664,17 @@ def _solve_statics(
         return jax.lax.stop_gradient(jnp.clip(jnp.ceil(size), 1, max_load_steps))
 
     # rod pairs: no point moves more than half the smallest radius per step
-    move, n_points = None, 0
+    move, n_position_rows = None, 0
     if _limits_moves(linkage):
-        move = jax.lax.stop_gradient(0.5 * r_min)
         n_points = jax.eval_shape(poses, data, q0).shape[0]
+        move = (jax.lax.stop_gradient(0.5 * r_min), n_points)
+        n_position_rows = 3 * n_points
     stages_of = None
-    if linkage.contact is not None and _has_penalty(linkage.contact):
+    if linkage.contact is not None and _has_law(linkage.contact, "penalty"):
         stages_of = _stiffness_stages(
-            linkage, data, q0, free, contact_cap, r_min, STIFFNESS_FACTOR, 3 * n_points
-        )
+            linkage, data, q0, free, contact_cap, r_min, STIFFNESS_FACTOR,
+            n_position_rows,
+        )  # fmt: skip
 
     # The solve sees no gradients: they come from the implicit function theorem at
     # the converged solution (below).
@@ -703,9 +696,8 @@ def _solve_statics(
             regularise=linkage.contact is not None,
             contact_rows=None
             if linkage.contact is None
-            else (n, contact_cap, _has_barrier(linkage.contact), move),
+            else (n, contact_cap, _has_law(linkage.contact, "barrier"), move),
             stages_of=stages_of,
-            n_points=n_points,
         )
         result = RESULTS.where(
             status == 0,
