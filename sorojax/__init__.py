@@ -68,6 +68,10 @@ _LAZY = {
     "simulate": ".integrate",
     "load_trajectory": ".io",
     "save_trajectory": ".io",
+    "SceneError": ".io",
+    "load_linkage": ".io",
+    "load_scene": ".io",
+    "save_linkage": ".io",
     "Kinematics": ".kinematics",
     "forward_kinematics": ".kinematics",
     "jacobians": ".kinematics",
@@ -191,7 +195,11 @@ if TYPE_CHECKING:  # static analysers see the names as plain imports
     from .integrate import SOLVERS as SOLVERS
     from .integrate import Trajectory as Trajectory
     from .integrate import simulate as simulate
+    from .io import SceneError as SceneError
+    from .io import load_linkage as load_linkage
+    from .io import load_scene as load_scene
     from .io import load_trajectory as load_trajectory
+    from .io import save_linkage as save_linkage
     from .io import save_trajectory as save_trajectory
     from .kinematics import Kinematics as Kinematics
     from .kinematics import forward_kinematics as forward_kinematics

@@ -1,4 +1,7 @@
-"""Files in and out: simulation trajectories as ``.npz`` (exact) or ``.mat`` (SoRoSim).
+"""Files in and out: trajectories (``.npz`` exact, ``.mat`` SoRoSim) and scene files.
+
+Scene files (TOML) hold a linkage and the settings of its statics and dynamics
+(:func:`save_linkage`, :func:`load_linkage`, :func:`load_scene`).
 
 Never traced; scipy is imported only when a ``.mat`` file is read or written. The
 trajectory functions are imported on first use (PEP 562): the plots' file helpers
@@ -8,7 +11,15 @@ trajectory functions are imported on first use (PEP 562): the plots' file helper
 import importlib
 from typing import TYPE_CHECKING
 
-_LAZY = {"load_trajectory": "._trajectory", "save_trajectory": "._trajectory"}
+_LAZY = {
+    "load_trajectory": "._trajectory",
+    "save_trajectory": "._trajectory",
+    "Scene": "._scene",
+    "SceneError": "._scene",
+    "load_linkage": "._scene",
+    "load_scene": "._scene",
+    "save_linkage": "._scene",
+}
 __all__ = sorted(_LAZY)
 
 
@@ -26,5 +37,10 @@ def __dir__():
 
 
 if TYPE_CHECKING:
+    from ._scene import Scene as Scene
+    from ._scene import SceneError as SceneError
+    from ._scene import load_linkage as load_linkage
+    from ._scene import load_scene as load_scene
+    from ._scene import save_linkage as save_linkage
     from ._trajectory import load_trajectory as load_trajectory
     from ._trajectory import save_trajectory as save_trajectory
