@@ -1,5 +1,7 @@
 """The ``sorojax`` console script.
 
+``sorojax check | statics | simulate | plot`` work on scene files (see
+:mod:`sorojax._cli_scene`).
 ``sorojax demo`` builds the built-in default scene (a rigid link on a revolute joint
 carrying a two-division soft link), solves its statics, prints ndof, the tip pose and
 timings (compile and warm separately) and writes a PNG of the configuration.
@@ -233,10 +235,13 @@ def main(argv=None) -> int:
         action="store_true",
         help="trace the program from the source instead of the exported one",
     )
+    from . import _cli_scene
+
+    _cli_scene.add_commands(sub)
     args = parser.parse_args(argv)
     if args.command == "demo":
         return _demo(args)
-    return 2
+    return _cli_scene.run(args)
 
 
 def console() -> None:

@@ -177,7 +177,7 @@ class Array(Kind):
             raise _Fail(
                 path, f"= {_show(value)} has shape {arr.shape}: give shape {want}."
             )
-        return arr
+        return arr.tolist()  # floats, as the constructors' messages show them
 
     def encode(self, value, path):
         return np.asarray(value, dtype=float).tolist()
@@ -206,7 +206,7 @@ class Choice(Kind):
     text = "number, list (diagonal) or matrix"
 
     def decode(self, value, path, ctx):
-        return _numeric_array(value, path)
+        return _numeric_array(value, path).tolist()
 
     def encode(self, value, path):
         m = np.asarray(value, dtype=float)
@@ -610,7 +610,21 @@ def _decode_table(spec: Spec, value, path: str, ctx: dict):
     except _Fail:
         raise
     except (ValueError, TypeError) as err:
-        raise _Fail(path or "(top level)", str(err)) from None
+        raise _Fail(_field_path(spec, path, str(err)), str(err)) from None
+
+
+def _field_path(spec: Spec, path: str, message: str) -> str:
+    """The key a constructor's message names (``Division.length = ...``), or ``path``.
+
+    The model's constructors name the field they refuse as ``Class.field[...]``;
+    where that field is a key of the table, the error points at the key (and so at
+    its line).
+    """
+    match = re.match(rf"{spec.cls.__name__}\.(\w+)((?:\[\d+\]|\.\w+)*)", message)
+    if match and match.group(1) in {k.name for k in spec.keys}:
+        field = match.group(1) + match.group(2)
+        return f"{path}.{field}" if path else field
+    return path or "(top level)"
 
 
 def _near(key: str, known) -> str | None:
@@ -838,6 +852,7 @@ def _define() -> None:
             "1 for the model's own columns, 0 for padding",
             REQUIRED,
         ),
+        build=_padded,
     )
     bases = ("basis.legendre", "basis.monomial", "basis.custom", "basis.padded")
     _spec(
@@ -1523,6 +1538,14 @@ class Orders(Kind):
 
     def encode(self, value, path):
         return value
+
+
+def _padded(kw: dict, path: str, ctx: dict):
+    import jax.numpy as jnp
+
+    from ..model import PaddedBasis
+
+    return PaddedBasis(kw["basis"], jnp.asarray(kw["active"], dtype=float))
 
 
 def _joint_axis(joint):

@@ -122,7 +122,9 @@ class Joint(eqx.Module):
             raise ValueError(
                 f"Joint.axis = {axis!r} is not allowed: give a non-zero 3-vector."
             )
-        a = a / np.linalg.norm(a)
+        norm = np.linalg.norm(a)
+        if abs(norm - 1.0) > 4 * np.finfo(float).eps:  # a unit axis is kept exactly
+            a = a / norm
         if not _traced(pitch) and not np.all(np.isfinite(np.asarray(pitch, float))):
             raise ValueError(
                 f"Joint.pitch = {pitch!r} is not finite: give the helical pitch in "
