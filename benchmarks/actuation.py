@@ -49,6 +49,7 @@ from _common import compile_time, environment, timed  # noqa: E402
 
 import sorojax as sj  # noqa: E402
 from sorojax._mechanisms import cable_manipulator  # noqa: E402
+from sorojax.scenes import manual_hybrid_inputs  # noqa: E402
 
 RESULTS_DIR = Path(__file__).resolve().parent / "results"
 T_MAX = 15.0  # tensions drawn from [0, T_MAX] N per cable
@@ -172,10 +173,8 @@ def bench_cables(n_batch, n_loop, repeats, batch_repeats, chunk):
 
 
 # ------------------------------------------------------------------------ hybrid
-def hybrid_inputs(t):
-    """Revolute angle pi t / 2 and tension ramped (1 - cos) to 50 N over 1 s."""
-    ramp = 0.5 * (1.0 - jnp.cos(jnp.pi * jnp.minimum(t, 1.0)))
-    return jnp.stack([jnp.pi * t / 2, HYBRID_TENSION * ramp])
+# revolute angle pi t / 2 and tension ramped (1 - cos) to 50 N over 1 s
+hybrid_inputs = manual_hybrid_inputs
 
 
 def bench_hybrid(repeats, dyn_repeats):

@@ -35,10 +35,11 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import sorojax as sj  # noqa: E402
+from sorojax.scenes import GRASP_LIFT, grasp_inputs  # noqa: E402
 
 G = 9.81
 FINGER, R_FINGER, R_BALL, M_BALL, GAP = 0.08, 0.006, 0.02, 0.02, 0.002
-LIFT = 0.05
+LIFT = GRASP_LIFT
 
 
 def _turn_down(flip: bool) -> np.ndarray:
@@ -81,11 +82,9 @@ def gripper(mu: float = 0.8) -> sj.Linkage:
     )  # fmt: skip
 
 
-def inputs(t, tension):
-    """``u(t)``: palm height [m], then the two tensions [N]."""
-    close = tension * jnp.clip(t / 0.3, 0.0, 1.0)
-    lift = LIFT * jnp.clip((t - 0.4) / 0.4, 0.0, 1.0)
-    return jnp.stack([lift, close, close])
+# u(t): palm height [m], then the two tensions [N] (in sorojax.scenes, so that the
+# scene file examples/scenes/grasp.toml can name it)
+inputs = grasp_inputs
 
 
 def grasp(lk, tension, t1, n_save=61, solver="rosenbrock_euler", dt=2e-3,

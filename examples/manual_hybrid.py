@@ -46,7 +46,11 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import sorojax as sj  # noqa: E402
-from sorojax.scenes import manual_hybrid  # noqa: E402
+from sorojax.scenes import (  # noqa: E402
+    MANUAL_HYBRID_TENSION,
+    manual_hybrid,
+    manual_hybrid_inputs,
+)
 from sorojax.viz import (  # noqa: E402
     animate,
     plot_cables,
@@ -57,13 +61,9 @@ from sorojax.viz import (  # noqa: E402
 sj.set_runtime_flags()  # XLA's CPU runtime flags: before any JAX array exists
 
 ANGLE = -math.pi / 4  # statics: revolute angle [rad]
-TENSION = 50.0  # cable tension [N] (statics; end of the ramp in dynamics)
-
-
-def inputs(t):
-    """Dynamics inputs at t: revolute angle pi t / 2, tension ramped over 1 s."""
-    ramp = 0.5 * (1.0 - jnp.cos(jnp.pi * jnp.minimum(t, 1.0)))
-    return jnp.stack([jnp.pi * t / 2, TENSION * ramp])
+TENSION = MANUAL_HYBRID_TENSION  # cable tension [N] (statics; end of the ramp)
+# dynamics inputs at t: revolute angle pi t / 2, tension ramped over 1 s
+inputs = manual_hybrid_inputs
 
 
 def main(argv=None):

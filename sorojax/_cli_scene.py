@@ -167,9 +167,10 @@ def _fail_setting(scene, key: str, message: str):
     return SceneError(str(scene.path), key, message, _line_of(lines, key))
 
 
-def _statics_arguments(scene, path=None) -> dict:
-    """``solve_statics``'s keyword arguments from ``[statics]``, checked against the
-    model (the lengths of ``u`` and ``q0``).
+def _statics_arguments(scene) -> dict:
+    """``solve_statics``'s keyword arguments from ``[statics]``, checked.
+
+    The lengths of ``u`` and ``q0`` are checked against the model.
 
     Raises:
         SceneError: ``u`` or ``q0`` of the wrong length.
@@ -192,8 +193,10 @@ def _statics_arguments(scene, path=None) -> dict:
 
 
 def _masses(linkage) -> list[float]:
-    """Mass of each link [kg]: rho A integrated along a rod (Gauss-Legendre), the
-    rigid bodies' own."""
+    """Mass of each link [kg].
+
+    rho A integrated along a rod (Gauss-Legendre), a rigid body's own.
+    """
     import numpy as np
 
     from .model import SoftLink
@@ -255,7 +258,10 @@ def _describe(scene) -> list[str]:
             kind = "prescribed coordinates" if a.prescribed else "joint forces"
             text = f"joint actuator on link {a.link} ({kind})"
         elif isinstance(a, Cable):
-            text = f"cable {a.name!r} ({len(a.route)} route element(s); tension, > 0 pulls)"
+            text = (
+                f"cable {a.name!r} ({len(a.route)} route element(s); tension, "
+                "> 0 pulls)"
+            )
         else:  # pragma: no cover
             text = type(a).__name__
         lines.append(f"  actuator {k + 1}: {text}, u[{sl.start}:{sl.stop}]")
@@ -292,7 +298,11 @@ def _short(v) -> str:
     if hasattr(v, "shape"):
         return np.array2string(np.asarray(v), precision=4, separator=", ")
     if callable(v):
-        return getattr(v, "__name__", type(v).__name__)
+        fn = getattr(v, "func", v)  # an equinox.Partial: its function and arguments
+        args = [_short(a) for a in getattr(v, "args", ())]
+        args += [f"{k}={_short(a)}" for k, a in getattr(v, "keywords", {}).items()]
+        name = getattr(fn, "__name__", type(fn).__name__)
+        return f"{name}({', '.join(args)})" if fn is not v else name
     return repr(v)
 
 

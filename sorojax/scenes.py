@@ -229,6 +229,35 @@ def manual_hybrid(E: float = 2e7, eta: float = 1e4) -> Linkage:
     )
 
 
+MANUAL_HYBRID_TENSION = 50.0
+"""The manual hybrid scene's cable tension [N] (statics; end of the dynamics' ramp)."""
+
+
+def manual_hybrid_inputs(t):
+    """Inputs of the manual hybrid scene's dynamics at ``t`` (angle, tension).
+
+    The revolute angle pi t / 2 [rad], the tension ramped smoothly to 50 N over the
+    first second.
+    """
+    ramp = 0.5 * (1.0 - jnp.cos(jnp.pi * jnp.minimum(t, 1.0)))
+    return jnp.stack([jnp.pi * t / 2, MANUAL_HYBRID_TENSION * ramp])
+
+
+GRASP_LIFT = 0.05
+"""How far the grasp's palm rises [m] (``examples/grasp.py``)."""
+
+
+def grasp_inputs(t, tension):
+    """Inputs of the grasp (``examples/grasp.py``) at ``t``: (height, tension x 2).
+
+    The palm's height [m] (rising ``GRASP_LIFT`` between 0.4 and 0.8 s), then the
+    two fingers' tensions [N] (ramped to ``tension`` over 0.3 s).
+    """
+    close = tension * jnp.clip(t / 0.3, 0.0, 1.0)
+    lift = GRASP_LIFT * jnp.clip((t - 0.4) / 0.4, 0.0, 1.0)
+    return jnp.stack([lift, close, close])
+
+
 def gripper_finger(
     E: float = 1e6,
     phalanges=(0.045, 0.03, 0.025),

@@ -390,7 +390,7 @@ def test_bad_scene_file_is_refused(tmp_path, case, old, new, key, value):
         if case.startswith("statics input"):  # checked against the model by the CLI
             from sorojax._cli_scene import _statics_arguments
 
-            _statics_arguments(scene, path)
+            _statics_arguments(scene)
     err = info.value
     message = str(err)
     assert str(path) in message, message

@@ -334,7 +334,7 @@ class Function(Kind):
 
 
 def _decode_argument(value, path):
-    """An argument of a saved ``equinox.Partial``: ``{array = ...}`` or a plain value."""
+    """An argument of a saved ``equinox.Partial``: ``{array = ...}`` or plain."""
     if isinstance(value, dict):
         if set(value) != {"array"}:
             raise _Fail(path, f"= {_show(value)}: give {{array = [...]}} or a number.")
@@ -667,9 +667,8 @@ def _define() -> None:
         Key(
             "type",
             String(tuple("NRPHUCASF")),
-            "the joint type: N fixed, R revolute, "
-            "P prismatic, H helical, U universal, C cylindrical, A planar, S spherical, "
-            "F free",
+            "the joint type: N fixed, R revolute, P prismatic, H helical, U "
+            "universal, C cylindrical, A planar, S spherical, F free",
             "N",
             get=lambda j: j.kind,
             arg="kind",
@@ -2043,6 +2042,8 @@ def key_reference() -> str:
         out.append("|---|---|---|---|")
         for k in spec.keys:
             default = "**required**" if k.default == REQUIRED else k.default
-            out.append(f"| `{k.name}` | {k.kind.text} | {default} | {k.doc} |")
+            cells = (k.kind.text, default, k.doc)
+            text, default, doc = (c.replace("|", "\\|") for c in cells)
+            out.append(f"| `{k.name}` | {text} | {default} | {doc} |")
         out.append("")
     return "\n".join(out)
