@@ -17,6 +17,7 @@ END = "<!-- end of the key reference -->"
 
 
 def main() -> None:
+    """Replace the text between the markers with the current reference."""
     text = PAGE.read_text()
     head, rest = text.split(START, 1)
     _, tail = rest.split(END, 1)

@@ -103,6 +103,20 @@ def test_every_scene_and_example_linkage_round_trips(tmp_path):
             raise AssertionError(f"{name}: {err}") from None
 
 
+@pytest.mark.slow
+def test_every_round_trip_solves_the_same_statics(tmp_path):
+    """Every scene and example linkage, saved and loaded back, solves its statics
+    (zero inputs, from the reference shape) to the same q as the original (1e-12)
+    with the same result code, whether or not that solve converges."""
+    cases = {**_scene_linkages(), **_example_linkages()}
+    for name, linkage in cases.items():
+        back = loads_scene(dumps_scene(linkage)).linkage
+        a = sj.solve_statics(linkage, throw=False, warn_unstable=False)
+        b = sj.solve_statics(back, throw=False, warn_unstable=False)
+        assert a.result == b.result, name
+        np.testing.assert_allclose(b.q, a.q, rtol=0, atol=1e-12, err_msg=name)
+
+
 def test_round_trip_statics_are_equal():
     """The reloaded demo and gripper finger solve to the same q (1e-12: the same
     programs on the same numbers give the same bits)."""
