@@ -252,8 +252,12 @@ def console() -> None:
     teardown: destroying XLA's client and thread pools and every module took
     ~0.2 s of the demo's ~3 s.
     """
-    code = main()
-    sys.stdout.flush()
+    try:
+        code = main()
+        sys.stdout.flush()
+    except BrokenPipeError:  # the output piped into a reader that closed (`| head`)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        code = 1
     sys.stderr.flush()
     os._exit(code)
 
