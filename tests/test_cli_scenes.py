@@ -5,10 +5,8 @@ The files are the Python examples' models (equal pytrees), so the command line's
 solutions equal the API's to round-off: compared to 1e-12.
 """
 
-import importlib.util
 import math
 import pathlib
-import sys
 
 import jax.numpy as jnp
 import matplotlib
@@ -17,38 +15,14 @@ import pytest
 
 matplotlib.use("Agg")
 
+from test_scene_files import _example, assert_same_model  # noqa: E402
+
 import sorojax as sj  # noqa: E402
 from sorojax import _mechanisms, scenes  # noqa: E402
 from sorojax._cli import main  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 SCENES = ROOT / "examples" / "scenes"
-
-
-def _example(name):
-    if name in sys.modules:
-        return sys.modules[name]
-    if str(ROOT / "examples") not in sys.path:
-        sys.path.append(str(ROOT / "examples"))
-    spec = importlib.util.spec_from_file_location(
-        name, ROOT / "examples" / f"{name}.py"
-    )
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-def _same(a, b):
-    import jax
-
-    la, ta = jax.tree.flatten(a)
-    lb, tb = jax.tree.flatten(b)
-    return ta == tb and all(
-        np.asarray(x).dtype == np.asarray(y).dtype
-        and np.array_equal(np.asarray(x), np.asarray(y))
-        for x, y in zip(la, lb, strict=True)
-    )
 
 
 def test_scene_files_are_the_examples_models():
@@ -63,7 +37,7 @@ def test_scene_files_are_the_examples_models():
     }
     assert sorted(p.stem for p in SCENES.glob("*.toml")) == sorted(models)
     for name, linkage in models.items():
-        assert _same(sj.load_linkage(SCENES / f"{name}.toml"), linkage), name
+        assert_same_model(sj.load_linkage(SCENES / f"{name}.toml"), linkage)
 
 
 def test_manual_hybrid_statics_by_command_line(tmp_path, capsys):
