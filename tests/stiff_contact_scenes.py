@@ -42,20 +42,31 @@ def _placed(x=0.0, y=0.0, z=0.0, R=None):
     return g
 
 
-def cantilever_on_floor(k, E=1e6, rho=1000.0, floor_z=0.0) -> sj.Linkage:
+WEIGHT = 1000.0 * np.pi * 0.01**2 * G  # N/m: the weight per length of the rods
+
+
+def barrier_law(reach, force=WEIGHT) -> sj.ContactLaw:
+    """A barrier of ``reach`` [m] whose force scale ``k reach`` is ``force`` [N/m]."""
+    reach = jnp.asarray(reach, float)
+    return sj.ContactLaw(stiffness=force / reach, smoothing=reach, kind="barrier")
+
+
+def cantilever_on_floor(k, E=1e6, rho=1000.0, floor_z=0.0, law=None) -> sj.Linkage:
+    """``law``: another contact law (then ``k`` is not used)."""
     rod = _rod(8, 4, E, (0, 1, 0, 0, 0, 0), rho=rho)
     floor = sj.Plane(point=jnp.stack([0.0, 0.0, jnp.asarray(floor_z, float)]))
-    law = sj.ContactLaw(stiffness=k, smoothing=SMOOTHING)
+    law = sj.ContactLaw(stiffness=k, smoothing=SMOOTHING) if law is None else law
     return sj.Linkage(
         [rod], placements=_placed(z=0.15)[None], gravity=(0, 0, -G),
         contact=sj.Contact(floor, law),
     )  # fmt: skip
 
 
-def rod_over_sphere(k, E=1e7, rho=1000.0, sphere_z=-0.01) -> sj.Linkage:
+def rod_over_sphere(k, E=1e7, rho=1000.0, sphere_z=-0.01, law=None) -> sj.Linkage:
+    """``law``: another contact law (then ``k`` is not used)."""
     rod = _rod(4, 3, E, (0, 1, 0, 0, 0, 0), rho=rho)
     pose = jnp.eye(4).at[:3, 3].set(jnp.stack([0.5, 0.0, jnp.asarray(sphere_z, float)]))
-    law = sj.ContactLaw(stiffness=k, smoothing=SMOOTHING)
+    law = sj.ContactLaw(stiffness=k, smoothing=SMOOTHING) if law is None else law
     return sj.Linkage(
         [rod], placements=_placed(z=0.1)[None], gravity=(0, 0, -G),
         contact=sj.Contact(sj.Sphere(0.1, pose=pose), law),

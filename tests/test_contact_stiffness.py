@@ -16,12 +16,16 @@ continuation). Truths checked:
   solution's distance from the rigid one goes as 1/k: a hundredth expected; the
   smoothing's delta / 2 offset and Newton's tolerance leave less);
 - the contact carries the load: the floor holds most of the cantilever's weight.
+
+The barrier law (its reach and force scale continued) converges at reaches 1e-3 ..
+1e-6 m on the sphere and the floor, its gap a fraction of the reach, its centre line
+converging to the penalty's rigid limit.
 """
 
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from stiff_contact_scenes import BALL_MASS, SCENES, centre_line
+from stiff_contact_scenes import BALL_MASS, SCENES, barrier_law, centre_line
 
 import sorojax as sj
 
@@ -90,3 +94,56 @@ def test_contact_carries_the_load(solved):
         assert 0.3 * weight < up < 2.0 * weight, up
     else:  # the floor or sphere holds part of the weight; the clamp the rest
         assert 0.3 * weight < fz < weight, fz
+
+
+# ------------------------------------------------------------------ the barrier
+REACHES = (1e-3, 1e-4, 1e-5, 1e-6)
+
+
+@pytest.fixture(scope="module", params=[
+    "rod_over_sphere", pytest.param("cantilever_on_floor", marks=pytest.mark.slow)
+])  # fmt: skip
+def barrier_solved(request):
+    """The scene on a barrier of each reach whose force scale k g_hat is the rod's
+    weight per length (the guide's advice: at or below the load), and on the
+    penalty at 1e10 (the rigid limit's neighbour)."""
+    build = SCENES[request.param]
+    out = {}
+    for reach in REACHES:
+        lk = build(None, law=barrier_law(reach))
+        out[reach] = (lk, sj.solve_statics(lk, throw=False, warn_unstable=False))
+    lk = build(jnp.asarray(1e10))
+    out["penalty"] = (lk, sj.solve_statics(lk, throw=False, warn_unstable=False))
+    return request.param, out
+
+
+def test_barrier_converges_at_small_reaches(barrier_solved):
+    """Reaches 1e-3 .. 1e-6 m (1e-1 .. 1e-4 of the radius) converge with the default
+    settings (the solve starts at a reach of 5 % of the radius and narrows it
+    tenfold per stage); the rod never touches and its smallest gap lies inside the
+    reach and above the barrier's logarithmic floor (1e-2 of the reach, where the
+    law turns linear): 0.11-0.31 of the reach on the floor, 0.012-0.014 over the
+    sphere, whose contact carries several weights per length."""
+    name, out = barrier_solved
+    for reach in REACHES:
+        _, sol = out[reach]
+        assert sol.result == sj.RESULTS.successful, (name, reach, sol.result)
+        gap = -float(jnp.max(sol.contact.penetration))
+        assert 0.01 * reach < gap < reach, (name, reach, gap)
+
+
+def test_barrier_converges_to_the_rigid_limit(barrier_solved):
+    """The centre line's change per decade of the reach falls (the body stands off
+    by a fraction of the reach: about tenfold per decade once the shape has
+    settled; measured 1e-3, 3e-4, 5e-5 m over the sphere, 5e-4, 5e-5, 5e-6 m on the
+    floor), and at 1e-6 m it lies within 1e-5 m of the penalty's at 1e10 N/m^2
+    (which sinks by nanometres)."""
+    name, out = barrier_solved
+    c = {key: centre_line(lk, sol.q) for key, (lk, sol) in out.items()}
+    pairs = zip(REACHES, REACHES[1:], strict=False)
+    steps = [np.max(np.abs(c[b] - c[a])) for a, b in pairs]
+    assert steps[0] > 0
+    for coarse, fine in zip(steps, steps[1:], strict=False):
+        assert fine < 0.5 * coarse, (name, steps)
+    assert steps[-1] < 0.1 * steps[0], (name, steps)
+    assert np.max(np.abs(c[1e-6] - c["penalty"])) < 1e-5, name

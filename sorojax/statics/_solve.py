@@ -263,12 +263,22 @@ STIFFNESS_FACTOR = 10.0
 
 
 def _softened(linkage: Linkage, s) -> Linkage:
-    """The linkage with every penalty law's stiffness times ``s``."""
+    """The linkage's contact at a continuation stage ``s = (s_k, s_r, s_f)``.
+
+    A penalty law's stiffness times ``s_k``; a barrier law's reach divided by
+    ``s_r`` and its force scale ``k g_hat`` times ``s_f`` (a wider and gentler
+    barrier: ``k`` times ``s_r s_f``). All ones: the user's laws.
+    """
+    s_k, s_r, s_f = s
 
     def scaled(law):
-        if law.kind != "penalty":
-            return law
-        return eqx.tree_at(lambda l_: l_.stiffness, law, law.stiffness * s)
+        if law.kind == "barrier":
+            return eqx.tree_at(
+                lambda l_: (l_.stiffness, l_.smoothing),
+                law,
+                (law.stiffness * s_r * s_f, law.smoothing / s_r),
+            )
+        return eqx.tree_at(lambda l_: l_.stiffness, law, law.stiffness * s_k)
 
     contact = linkage.contact
     contact = eqx.tree_at(lambda c: c.law, contact, scaled(contact.law))
@@ -277,8 +287,13 @@ def _softened(linkage: Linkage, s) -> Linkage:
     return eqx.tree_at(lambda l_: l_.contact, linkage, contact)
 
 
-def _row_stiffness(linkage: Linkage, n_rows: int) -> Array:
-    """Each contact row's penalty stiffness [N/m].
+def _barrier_force(law) -> Array:
+    """The law's force scale ``k g_hat`` if it is a barrier, else 0."""
+    return law.stiffness * law.smoothing if law.kind == "barrier" else jnp.zeros(())
+
+
+def _row_stiffness(linkage: Linkage, n_rows: int, of=_penalty_stiffness) -> Array:
+    """Each contact row's penalty stiffness [N/m] (or another value ``of`` a law).
 
     The law's k times the length a rod sample stands for (obstacle rows, first),
     the law's k per point (rod pairs, tubes); 0 for barrier laws.
@@ -288,9 +303,9 @@ def _row_stiffness(linkage: Linkage, n_rows: int) -> Array:
     if contact.obstacles:
         w = obstacle_samples(linkage).weight
         laws = [contact.obstacle_law(i) for i in range(len(contact.obstacles))]
-        parts = [_penalty_stiffness(law) * w for law in laws]
+        parts = [of(law) * w for law in laws]
     n_obs = sum(p.shape[0] for p in parts)
-    parts.append(jnp.full((n_rows - n_obs,), _penalty_stiffness(contact.law)))
+    parts.append(jnp.full((n_rows - n_obs,), of(contact.law)))
     return jnp.concatenate(parts)
 
 
@@ -306,11 +321,26 @@ def _stiffness_stages(linkage, data, q0, free, depth_cap, r_min, factor, skip):
     every sample at one depth); where it is below the target depth (ten depth
     caps, at most 5 % of the smallest radius), the solve starts at the stiffness
     that puts it there and multiplies it by at most ``factor`` per stage.
+
+    A barrier law starts with its reach at 5 % of the smallest radius (where it is
+    narrower) and its force scale ``k g_hat`` at most the load's (estimated as the
+    penalty's, ``max_j sum_i k g_hat w_i |dd_i/dq_j|`` against ``max |F|``): a
+    narrow barrier meets Newton's steps with a force that rises over the user's
+    reach, and a strong one throws the body off. The stages narrow the reach and
+    raise the force scale together (``s_r = s ** a``, ``s_f = s ** b``), the
+    number of stages set by the largest of the three ratios.
     """
     nf = len(free)
     n = linkage.n_dof
     elastic = jax.lax.stop_gradient(jnp.abs(data.K @ q0)[free])
     target = jnp.minimum(10.0 * depth_cap, jnp.maximum(depth_cap, 0.05 * r_min))
+    contact = linkage.contact
+    reaches = [lw.smoothing for lw in (contact.law, *contact.obstacle_laws)
+               if lw.kind == "barrier"]  # fmt: skip
+    barrier_reach = jax.lax.stop_gradient(
+        jnp.min(jnp.stack(reaches)) if reaches else jnp.inf
+    )
+    reach_target = jnp.where(jnp.isfinite(r_min), 0.05 * r_min, jnp.inf)
     log_factor = math.log(factor)
 
     def stages_of(f, aux, J_aux):
@@ -331,10 +361,28 @@ def _stiffness_stages(linkage, data, q0, free, depth_cap, r_min, factor, skip):
             k_pair = _penalty_stiffness(linkage.contact.law)
             reach = jnp.maximum(reach, jnp.max(k_pair * lever, initial=0.0))
         depth = load / jnp.where(reach > 0, reach, 1.0)
-        s0 = jnp.where((reach > 0) & (load > 0), depth / target, 1.0)
-        s0 = jnp.clip(s0, 1e-12, 1.0)
+        s_k = jnp.where((reach > 0) & (load > 0), depth / target, 1.0)
+        # A barrier starts with its reach at the target, where Newton meets a force
+        # that grows over a distance like the radius's, not like the user's reach,
+        # and with its force scale k g_hat at most the load's (a barrier far
+        # stronger than the load throws the body off), both then raised to the
+        # user's over the stages.
+        force = jnp.max(_row_stiffness(linkage, G.shape[0], _barrier_force) @ G,
+                        initial=0.0)  # fmt: skip
+        s_r = jnp.where(
+            jnp.isfinite(barrier_reach) & jnp.isfinite(reach_target),
+            jnp.clip(barrier_reach / reach_target, 1e-12, 1.0),
+            1.0,
+        )
+        s_f = jnp.where((force > 0) & (load > 0), load / force, 1.0)
+        s_f = jnp.clip(s_f, 1e-12, 1.0)
+        s0 = jnp.clip(jnp.minimum(s_k, jnp.minimum(s_r, s_f)), 1e-12, 1.0)
         m = jnp.ceil(-jnp.log(s0) / log_factor - 1e-9)
-        return jax.lax.stop_gradient((jnp.maximum(m, 0.0), s0))
+        # exponents: stage factor s gives s_r = s ** a, s_f = s ** b
+        log_s0 = jnp.where(s0 < 1.0, jnp.log(s0), -1.0)
+        a = jnp.where(s0 < 1.0, jnp.log(s_r) / log_s0, 0.0)
+        b = jnp.where(s0 < 1.0, jnp.log(s_f) / log_s0, 0.0)
+        return jax.lax.stop_gradient((jnp.maximum(m, 0.0), s0, a, b))
 
     return stages_of
 
@@ -394,14 +442,17 @@ def _newton(
     which keeps a barrier law's contacts apart). A step that made the residual
     grow halves the next (contact's kinks can make Newton cycle).
 
-    Stiffness continuation (contact): ``stages_of(f, aux, J_aux) -> (m, s0)``, from
-    the first evaluation (at full load and full stiffness), gives m stages after the
-    load increments: the increments run at the penalty laws' stiffness times s0,
-    then stage j = 1 .. m at ``s0 ** ((m - j) / m)``, the last at the user's
-    stiffness (each warm-started from the last, the intermediate ones to the loose
-    tolerances). A residual is also small when it is at the round-off level of its
-    terms, ``|f_i| <= 4 eps sum_j |J_ij| (1 + |x_j|)``: a penetration computed from
-    positions of size 1 carries an error of about eps, which a stiff law turns into
+    Stiffness continuation (contact): ``stages_of(f, aux, J_aux) -> (m, s0, a,
+    b)``, from the first evaluation (at full load and full stiffness), gives m
+    stages after the load increments: the increments run at stage factor s0, then
+    stage j = 1 .. m at ``s = s0 ** ((m - j) / m)``, the last at the user's laws
+    (each warm-started from the last, the intermediate ones to the loose
+    tolerances). ``fn_aux`` gets ``(s, s ** a, s ** b)``: the penalty laws'
+    stiffness factor, a barrier's reach divisor and force-scale factor (see
+    :func:`_softened`). A residual is also small when it is at the round-off level
+    of its terms, ``|f_i| <= 4 eps sum_j |J_ij| (1 + |x_j|)``: a penetration
+    computed from positions of size 1 carries an error of about eps, which a stiff
+    law turns into
     a force that no step can remove.
 
     Returns ``(x, f, aux, (J, J_aux), steps, status)`` (``J_aux = daux/dx``), status
@@ -416,7 +467,7 @@ def _newton(
     def evaluate(x, lam, s):
         return _jacobian_and_values(lambda x_: fn_aux(x_, lam, s), x)
 
-    shapes = jax.eval_shape(evaluate, x0, one, one)
+    shapes = jax.eval_shape(evaluate, x0, one, (one, one, one))
     zeros = jax.tree_util.tree_map(lambda s: jnp.zeros(s.shape, s.dtype), shapes)
     int_ = jnp.asarray(0).dtype
     # carry: k (0: probe at full load), n, x, steps in this increment, total steps,
@@ -430,6 +481,8 @@ def _newton(
             one if n_inc_given is None else jnp.asarray(n_inc_given, dtype),
             jnp.zeros((), dtype),  # stiffness stages m
             one,  # the first stiffness factor s0
+            jnp.zeros((), dtype),  # exponents of a barrier's reach and force
+            jnp.zeros((), dtype),
         ),
         x0,
         jnp.zeros((), int_),
@@ -445,14 +498,14 @@ def _newton(
         return c[6] < 0
 
     def body(c):
-        k, (n, m, s0), x, it, total, small, _, _, _, (trust, f_prev) = c
+        k, (n, m, s0, a, b), x, it, total, small, _, _, _, (trust, f_prev) = c
         probe = k == 0
         # load factor and stiffness factor of increment k (the probe: both full)
         lam = jnp.where(probe, one, jnp.minimum(k / n, 1.0))
         s = jnp.where(
             probe | (m == 0), one, s0 ** (jnp.clip(n + m - k, 0, m) / jnp.maximum(m, 1))
         )
-        (J, J_aux), (f, aux) = evaluate(x, lam, s)
+        (J, J_aux), (f, aux) = evaluate(x, lam, (s, s**a, s**b))
         if n_mult:
             # Least-squares multipliers at x0; the residual the increments are
             # chosen from is the one left after them.
@@ -466,9 +519,11 @@ def _newton(
         if n_inc_given is None:
             n = jnp.where(probe, n_inc_of(f_probe), n)
         if stages_of is not None:
-            m_new, s0_new = stages_of(f_probe, aux, J_aux)
+            m_new, s0_new, a_new, b_new = stages_of(f_probe, aux, J_aux)
             m = jnp.where(probe, m_new, m)
             s0 = jnp.where(probe, s0_new, s0)
+            a = jnp.where(probe, a_new, a)
+            b = jnp.where(probe, b_new, b)
         # With one increment at full stiffness the probe (full load at x0) is its
         # first iteration (not with multipliers: they were just reset).
         if not n_mult:
@@ -553,7 +608,7 @@ def _newton(
             dx = trust * dx
         return (
             jnp.where(~iterate | advance, k + 1, k),
-            (n, m, s0),
+            (n, m, s0, a, b),
             jnp.where(step, x - dx, x),
             jnp.where(step & ~advance, it + 1, 0),
             total + step.astype(int_),
@@ -670,7 +725,7 @@ def _solve_statics(
         move = (jax.lax.stop_gradient(0.5 * r_min), n_points)
         n_position_rows = 3 * n_points
     stages_of = None
-    if linkage.contact is not None and _has_law(linkage.contact, "penalty"):
+    if linkage.contact is not None:
         stages_of = _stiffness_stages(
             linkage, data, q0, free, contact_cap, r_min, STIFFNESS_FACTOR,
             n_position_rows,
