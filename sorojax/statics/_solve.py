@@ -452,8 +452,7 @@ def _newton(
     :func:`_softened`). A residual is also small when it is at the round-off level
     of its terms, ``|f_i| <= 4 eps sum_j |J_ij| (1 + |x_j|)``: a penetration
     computed from positions of size 1 carries an error of about eps, which a stiff
-    law turns into
-    a force that no step can remove.
+    law turns into a force that no step can remove.
 
     Returns ``(x, f, aux, (J, J_aux), steps, status)`` (``J_aux = daux/dx``), status
     0 converged, 1 out of steps, 2 non-finite values, 3 failed linear solve.
