@@ -15,9 +15,10 @@ The same on three scenes of tests/stiff_contact_scenes.py at k 1e6 (N/m^2 on the
 sphere, N/m between the rods and in the tube; smoothing 1e-8 m), with respect to E,
 density and the obstacle's position (the sphere's height, the lower rod's drop, the
 ball's joint), and on the sphere also k (step 1e-3 of it). Between the rods and in
-the tube k moves the solution by k |dq/dk| = 4e-5 m and 7e-8 m: q's round-off (about
-1e-12) over any step that keeps the differences' truncation below 1e-6 leaves more
-than 1e-6 of that column, so those k columns are not checked here. Forward against
+the tube at 1e6 k moves the solution by k |dq/dk| = 4e-5 m and 7e-8 m: q's round-off
+(about 1e-12) over any step that keeps the differences' truncation below 1e-6 leaves
+more than 1e-6 of that column; their k columns are checked at softer laws instead
+(1e4 N/m between the rods, 1e3 N/m in the tube: 3.8e-3 m and 6.6e-5 m). Forward against
 reverse mode agree to 1e-8 of each column (measured up to 1.2e-9, in the tube: the
 linear solve's round-off with a stiff contact). At k 1e8 the E, density and position
 columns of the sphere and the rods agree to 2e-8 .. 1e-7; the floor of
@@ -140,3 +141,36 @@ def test_stiff_contact_statics_jacobian_equals_central_differences(name):
                 f"forward vs reverse {fwd:.1e} (of the column's scale {scale:.3e})"
             )
     assert not failures, f"{name}: " + "; ".join(failures)
+
+
+# The stiffness column between the rods and in the tube, at a softer law where the
+# solution moves with k by more than q's round-off (k |dq/dk| 3.8e-3 m between the
+# rods at 1e4 N/m, 6.6e-5 m in the tube at 1e3 N/m; measured: 2.4e-8 .. 4.5e-8 and
+# 4e-8 .. 3.2e-7 for relative steps 1e-3 .. 1e-2, the differences' plateau).
+SOFT_K = {"crossing_rods": 1e4, "ball_in_tube": 1e3}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(SOFT_K))
+def test_stiffness_column_between_bodies_equals_central_differences(name):
+    values = list(STIFF[name][0])
+    values[2] = SOFT_K[name]
+    p0 = jnp.asarray(values)
+    out = jax.jit(functools.partial(_stiff_outputs, name))
+    assert out(p0)[1] == sj.RESULTS.successful
+    jac = jax.jit(jax.jacrev(lambda p: _stiff_outputs(name, p)[0]))(p0)[:, 2]
+    jac_fwd = jax.jit(jax.jacfwd(lambda p: _stiff_outputs(name, p)[0]))(p0)[:, 2]
+    h = 1e-2 * values[2]
+    central = []
+    for step in (h, 2 * h):
+        e = jnp.zeros(4).at[2].set(step)
+        (plus, ok_plus), (minus, ok_minus) = out(p0 + e), out(p0 - e)
+        assert ok_plus == sj.RESULTS.successful and ok_minus == sj.RESULTS.successful
+        central.append((plus - minus) / (2 * step))
+    fd = (4 * central[0] - central[1]) / 3  # Richardson: fourth order in h
+    scale = float(jnp.max(jnp.abs(fd)))
+    assert scale * values[2] > 1e-5, "the solution should move with k"
+    err = float(jnp.max(jnp.abs(jac - fd))) / scale
+    assert err < 1e-6, f"{name}: d/dk reverse mode vs central differences {err:.1e}"
+    fwd = float(jnp.max(jnp.abs(jac_fwd - jac))) / scale
+    assert fwd < 1e-8, f"{name}: d/dk forward vs reverse {fwd:.1e}"
