@@ -82,7 +82,7 @@ class Kind:
 
     text = "value"
 
-    def decode(self, value, path: str, ctx: dict):
+    def decode(self, value, path: str):
         raise NotImplementedError
 
     def encode(self, value, path: str):
@@ -102,7 +102,7 @@ class Number(Kind):
         self.unit = unit
         self.text = f"number [{unit}]" if unit else "number"
 
-    def decode(self, value, path, ctx):
+    def decode(self, value, path):
         return _number(value, path)
 
     def encode(self, value, path):
@@ -113,7 +113,7 @@ class Integer(Kind):
     def __init__(self, low: int | None = None, text: str = "integer"):
         self.low, self.text = low, text
 
-    def decode(self, value, path, ctx):
+    def decode(self, value, path):
         if isinstance(value, bool) or not isinstance(value, int):
             raise _Fail(
                 path, f"= {_show(value)} is not an integer: give a whole number."
@@ -131,7 +131,7 @@ class Integer(Kind):
 class Boolean(Kind):
     text = "true / false"
 
-    def decode(self, value, path, ctx):
+    def decode(self, value, path):
         if not isinstance(value, bool):
             raise _Fail(path, f"= {_show(value)} is not true or false.")
         return value
@@ -147,7 +147,7 @@ class String(Kind):
             " | ".join(f'"{c}"' for c in choices) if choices is not None else "string"
         )
 
-    def decode(self, value, path, ctx):
+    def decode(self, value, path):
         if not isinstance(value, str):
             raise _Fail(path, f"= {_show(value)} is not a string: give text in quotes.")
         if self.choices is not None and value not in self.choices:
@@ -168,7 +168,7 @@ class Array(Kind):
         dims = " x ".join("n" if s is None else str(s) for s in shape)
         self.text = f"{dims} numbers" + (f" [{unit}]" if unit else "")
 
-    def decode(self, value, path, ctx):
+    def decode(self, value, path):
         arr = _numeric_array(value, path)
         if len(self.shape) != arr.ndim or any(
             s is not None and s != n for s, n in zip(self.shape, arr.shape, strict=True)
@@ -205,7 +205,7 @@ class Choice(Kind):
 
     text = "number, list (diagonal) or matrix"
 
-    def decode(self, value, path, ctx):
+    def decode(self, value, path):
         return _numeric_array(value, path).tolist()
 
     def encode(self, value, path):
@@ -223,7 +223,7 @@ class Pose(Kind):
 
     text = "pose: {translation = [x, y, z], rotation = 3x3} or a 4x4 matrix"
 
-    def decode(self, value, path, ctx):
+    def decode(self, value, path):
         if isinstance(value, dict):
             unknown = set(value) - {"translation", "rotation"}
             if unknown:
@@ -234,15 +234,11 @@ class Pose(Kind):
                 )
             g = np.eye(4)
             if "translation" in value:
-                g[:3, 3] = Array(3).decode(
-                    value["translation"], f"{path}.translation", ctx
-                )
+                g[:3, 3] = Array(3).decode(value["translation"], f"{path}.translation")
             if "rotation" in value:
-                g[:3, :3] = Array(3, 3).decode(
-                    value["rotation"], f"{path}.rotation", ctx
-                )
+                g[:3, :3] = Array(3, 3).decode(value["rotation"], f"{path}.rotation")
             return g
-        return Array(4, 4).decode(value, path, ctx)
+        return Array(4, 4).decode(value, path)
 
     def encode(self, value, path):
         g = np.asarray(value, dtype=float)
@@ -256,11 +252,11 @@ class Profile(Kind):
 
     text = 'number [m], [start, end] (a taper) or "module:function" of X1'
 
-    def decode(self, value, path, ctx):
+    def decode(self, value, path):
         if isinstance(value, str):
             return _import(value, path)
         if isinstance(value, list):
-            arr = Array(2).decode(value, path, ctx)
+            arr = Array(2).decode(value, path)
             return (float(arr[0]), float(arr[1]))
         return _number(value, path)
 
@@ -283,7 +279,7 @@ class Function(Kind):
 
     text = '"module:function" or {function = "module:function", args, kwargs}'
 
-    def decode(self, value, path, ctx):
+    def decode(self, value, path):
         if isinstance(value, str):
             return _import(value, path)
         if isinstance(value, dict):
@@ -296,9 +292,7 @@ class Function(Kind):
                 )
             import equinox as eqx
 
-            fn = _import(
-                String().decode(value["function"], f"{path}.function", ctx), path
-            )
+            fn = _import(String().decode(value["function"], f"{path}.function"), path)
             args = value.get("args", [])
             if not isinstance(args, list):
                 raise _Fail(f"{path}.args", f"= {_show(args)} is not a list.")
@@ -409,12 +403,12 @@ def _import(text: str, path: str):
 class Table(Kind):
     """A nested table of one type (``spec``), or one of several by its ``type`` key."""
 
-    def __init__(self, *specs: str, inline: bool = False):
-        self.specs, self.inline = specs, inline
+    def __init__(self, *specs: str):
+        self.specs = specs
         self.text = " | ".join(specs) + " table"
 
-    def decode(self, value, path, ctx):
-        return _decode_table(self._spec_of(value, path), value, path, ctx)
+    def decode(self, value, path):
+        return _decode_table(self._spec_of(value, path), value, path)
 
     def _spec_of(self, value, path) -> Spec:
         if not isinstance(value, dict):
@@ -448,13 +442,13 @@ class JointKind(Table):
     """A joint: a letter (``"R"``) or a ``[joint]`` table."""
 
     def __init__(self):
-        super().__init__("joint", inline=True)
+        super().__init__("joint")
         self.text = 'joint letter ("R") or joint table'
 
-    def decode(self, value, path, ctx):
+    def decode(self, value, path):
         if isinstance(value, str):
             value = {"type": value}
-        return super().decode(value, path, ctx)
+        return super().decode(value, path)
 
     def encode(self, value, path):
         out = super().encode(value, path)
@@ -466,12 +460,10 @@ class ListOf(Kind):
         self.item = item
         self.text = text or f"list of {item.text}"
 
-    def decode(self, value, path, ctx):
+    def decode(self, value, path):
         if not isinstance(value, list):
             raise _Fail(path, f"= {_show(value)} is not a list.")
-        return tuple(
-            self.item.decode(v, f"{path}[{i}]", ctx) for i, v in enumerate(value)
-        )
+        return tuple(self.item.decode(v, f"{path}[{i}]") for i, v in enumerate(value))
 
     def encode(self, value, path):
         return [self.item.encode(v, f"{path}[{i}]") for i, v in enumerate(value)]
@@ -480,12 +472,10 @@ class ListOf(Kind):
 class IntPair(Kind):
     text = "[a, b] (two link numbers)"
 
-    def decode(self, value, path, ctx):
+    def decode(self, value, path):
         if not (isinstance(value, list) and len(value) == 2):
             raise _Fail(path, f"= {_show(value)}: give two integers [a, b].")
-        return tuple(
-            Integer().decode(v, f"{path}[{i}]", ctx) for i, v in enumerate(value)
-        )
+        return tuple(Integer().decode(v, f"{path}[{i}]") for i, v in enumerate(value))
 
     def encode(self, value, path):
         return [int(v) for v in value]
@@ -499,10 +489,10 @@ class VectorOrFunction(Kind):
         count = "list of" if n is None else f"{n}"
         self.text = f'{count} numbers [{unit}] or "module:function"'
 
-    def decode(self, value, path, ctx):
+    def decode(self, value, path):
         if isinstance(value, str | dict):
-            return Function().decode(value, path, ctx)
-        return Array(self.n).decode(value, path, ctx)
+            return Function().decode(value, path)
+        return Array(self.n).decode(value, path)
 
     def encode(self, value, path):
         if callable(value):
@@ -515,11 +505,11 @@ class Params(Kind):
 
     text = "number, list of numbers, or table of them"
 
-    def decode(self, value, path, ctx):
+    def decode(self, value, path):
         import jax.numpy as jnp
 
         if isinstance(value, dict):
-            return {k: self.decode(v, f"{path}.{k}", ctx) for k, v in value.items()}
+            return {k: self.decode(v, f"{path}.{k}") for k, v in value.items()}
         return jnp.asarray(_numeric_array(value, path))
 
     def encode(self, value, path):
@@ -577,7 +567,7 @@ def _spec(name, cls, tag, doc, *keys, build=None) -> None:
     SPECS[name] = Spec(name, cls, tag, keys, doc, build)
 
 
-def _decode_table(spec: Spec, value, path: str, ctx: dict):
+def _decode_table(spec: Spec, value, path: str):
     if not isinstance(value, dict):
         raise _Fail(path, f"= {_show(value)} is not a table.")
     known = {k.name for k in spec.keys} | ({"type"} if spec.tag else set())
@@ -599,10 +589,10 @@ def _decode_table(spec: Spec, value, path: str, ctx: dict):
                     sub, f"is missing: give {k.doc.rstrip('.')} ({k.kind.text})."
                 )
             continue
-        kwargs[k.name] = k.kind.decode(value[k.name], sub, ctx)
+        kwargs[k.name] = k.kind.decode(value[k.name], sub)
     try:
         if spec.build is not None:
-            return spec.build(kwargs, path, ctx)
+            return spec.build(kwargs, path)
         args = {
             (k.arg or k.name): kwargs[k.name] for k in spec.keys if k.name in kwargs
         }
@@ -1284,7 +1274,7 @@ def _define() -> None:
         "A soft link's contact radius override.",
         Key("link", Integer(1), "soft link number", REQUIRED),
         Key("radius", Number(metre), "contact radius", REQUIRED),
-        build=lambda kw, p, c: (kw["link"], kw["radius"]),
+        build=lambda kw, p: (kw["link"], kw["radius"]),
     )
     obstacles = tuple(s for s in SPECS if s.startswith("obstacles."))
     shapes = ("shapes.sphere", "shapes.capsule", "shapes.box")
@@ -1386,7 +1376,7 @@ def _define() -> None:
         Key("max_steps", Integer(1), "Newton iterations per load step", "64"),
         Key("rtol", Number(), "relative tolerance", "1e-10"),
         Key("atol", Number(), "absolute tolerance", "1e-10"),
-        build=lambda kw, p, c: kw,
+        build=lambda kw, p: kw,
     )
     _spec(
         "simulate",
@@ -1410,7 +1400,7 @@ def _define() -> None:
         Key("dt0", Number("s"), "initial (or fixed) step", "automatic"),
         Key("adaptive", Boolean(), "adaptive steps", "the solver's"),
         Key("max_steps", Integer(1), "most steps", "16384"),
-        build=lambda kw, p, c: kw,
+        build=lambda kw, p: kw,
     )
     _spec(
         "scene",
@@ -1514,12 +1504,10 @@ def _define() -> None:
 class Flags(Kind):
     text = "six 0/1 flags"
 
-    def decode(self, value, path, ctx):
+    def decode(self, value, path):
         if not isinstance(value, list) or len(value) != 6:
             raise _Fail(path, f"= {_show(value)}: give six 0/1 flags.")
-        return tuple(
-            Integer().decode(v, f"{path}[{i}]", ctx) for i, v in enumerate(value)
-        )
+        return tuple(Integer().decode(v, f"{path}[{i}]") for i, v in enumerate(value))
 
     def encode(self, value, path):
         return [int(v) for v in value]
@@ -1528,18 +1516,18 @@ class Flags(Kind):
 class Orders(Kind):
     text = "integer, or six integers"
 
-    def decode(self, value, path, ctx):
+    def decode(self, value, path):
         if isinstance(value, list):
             return tuple(
-                Integer(0).decode(v, f"{path}[{i}]", ctx) for i, v in enumerate(value)
+                Integer(0).decode(v, f"{path}[{i}]") for i, v in enumerate(value)
             )
-        return Integer(0).decode(value, path, ctx)
+        return Integer(0).decode(value, path)
 
     def encode(self, value, path):
         return value
 
 
-def _padded(kw: dict, path: str, ctx: dict):
+def _padded(kw: dict, path: str):
     import jax.numpy as jnp
 
     from ..model import PaddedBasis
@@ -1559,7 +1547,7 @@ def _joint_axis(joint):
     )
 
 
-def _build_contact(kw: dict, path: str, ctx: dict):
+def _build_contact(kw: dict, path: str):
     from ..model import Contact
 
     args = {k: v for k, v in kw.items() if k not in ("shapes", "radius", "obstacles")}
@@ -1578,7 +1566,7 @@ def _build_contact(kw: dict, path: str, ctx: dict):
     return Contact(obstacles, shapes=shapes, radius=radius, obstacle_laws=laws, **args)
 
 
-def _build_scene(kw: dict, path: str, ctx: dict):
+def _build_scene(kw: dict, path: str):
     from ..model import Linkage
 
     if kw["version"] != VERSION:
@@ -1623,7 +1611,7 @@ def _build_scene(kw: dict, path: str, ctx: dict):
 
 
 def _link_builder(spec_name: str):
-    def build(kw, path, ctx):
+    def build(kw, path):
         spec = SPECS[spec_name]
         args = {
             (k.arg or k.name): kw[k.name]
@@ -1636,7 +1624,7 @@ def _link_builder(spec_name: str):
 
 
 def _shape_builder(spec_name: str):
-    def build(kw, path, ctx):
+    def build(kw, path):
         spec = SPECS[spec_name]
         args = {k.name: kw[k.name] for k in spec.keys if k.name in kw and k.arg != ""}
         return kw["link"], spec.cls(**args)
@@ -1645,7 +1633,7 @@ def _shape_builder(spec_name: str):
 
 
 def _obstacle_builder(spec_name: str):
-    def build(kw, path, ctx):
+    def build(kw, path):
         spec = SPECS[spec_name]
         args = {k.name: kw[k.name] for k in spec.keys if k.name in kw and k.arg != ""}
         return spec.cls(**args), kw.get("law")
@@ -1760,7 +1748,6 @@ def loads_scene(text: str, name: str = "<string>") -> Scene:
             int(match.group(1)) if match else None,
         ) from None
     lines = _key_lines(text)
-    ctx: dict = {}
     try:
         if raw.get("format") != FORMAT:
             if "format" not in raw:
@@ -1781,24 +1768,24 @@ def loads_scene(text: str, name: str = "<string>") -> Scene:
                 f"= {raw['version']}: this sorojax reads scene format version "
                 f"{VERSION}; upgrade sorojax for a newer file.",
             )
-        linkage = _decode_table(SPECS["scene"], raw, "", ctx)
+        linkage = _decode_table(SPECS["scene"], raw, "")
     except _Fail as fail:
         raise SceneError(
             name, fail.path, fail.message, _line_of(lines, fail.path)
         ) from None
     return Scene(
         linkage=linkage,
-        statics=_settings(raw, "statics", name, lines, ctx),
-        simulate=_settings(raw, "simulate", name, lines, ctx),
+        statics=_settings(raw, "statics", name, lines),
+        simulate=_settings(raw, "simulate", name, lines),
         description=raw.get("description", ""),
     )
 
 
-def _settings(raw, key, name, lines, ctx) -> dict:
+def _settings(raw, key, name, lines) -> dict:
     if key not in raw:
         return {}
     try:
-        return dict(_decode_table(SPECS[key], raw[key], key, ctx))
+        return dict(_decode_table(SPECS[key], raw[key], key))
     except _Fail as fail:  # pragma: no cover - checked with the scene
         raise SceneError(
             name, fail.path, fail.message, _line_of(lines, fail.path)
