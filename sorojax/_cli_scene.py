@@ -218,6 +218,7 @@ def _masses(linkage) -> list[float]:
 
 def _describe(scene) -> list[str]:
     from .model import Cable, JointActuator, SoftLink
+    from .model._basis import MODE_NAMES
 
     lk = scene.linkage
     lines = []
@@ -240,10 +241,15 @@ def _describe(scene) -> list[str]:
                 if modes is None:
                     divs.append(f"{d.n_dof} dof (custom basis)")
                     continue
-                names = "".join(c for c, on in zip("TYZXyz", modes, strict=True) if on)
+                names = ", ".join(
+                    f"{name} ({order})"
+                    for name, on, order in zip(
+                        MODE_NAMES, modes, basis.orders, strict=True
+                    )
+                    if on
+                )
                 divs.append(
-                    f"{float(d.length):.4g} m, modes {names}, orders "
-                    f"{max(basis.orders)}, {d.n_dof} dof"
+                    f"{float(d.length):.4g} m, modes (order) {names}: {d.n_dof} dof"
                 )
             body = f"soft, {len(divs)} division(s): " + "; ".join(divs)
         else:
