@@ -242,9 +242,14 @@ class Pose(Kind):
 
     def encode(self, value, path):
         g = np.asarray(value, dtype=float)
-        if np.array_equal(g[:3, :3], np.eye(3)) and np.array_equal(g[3], [0, 0, 0, 1]):
+        if not np.array_equal(g[3], [0, 0, 0, 1]):
+            return g.tolist()  # not a rigid pose: the matrix as it is
+        if np.array_equal(g[:3, :3], np.eye(3)):
             return {"translation": g[:3, 3].tolist()}
-        return g.tolist()
+        out = {"rotation": g[:3, :3].tolist()}
+        if np.any(g[:3, 3]):
+            out["translation"] = g[:3, 3].tolist()
+        return out
 
 
 class Profile(Kind):
