@@ -539,8 +539,9 @@ class Key:
             :data:`REQUIRED` for a key that must be given).
         get: reads the value from a model object (default: the attribute ``name``);
             returning None omits the key.
-        arg: the constructor argument it feeds (None: ``name``; ``""``: none, read
-            by the table's builder).
+        arg: the constructor argument it feeds (None: ``name``; ``""``: none: a
+            table with such keys decodes to ``(object, {key: value})``, or its
+            ``build`` reads them).
         omit: a written value equal to this is left out (the default's value).
     """
 
@@ -548,7 +549,7 @@ class Key:
     kind: Kind
     doc: str
     default: str = ""
-    get: Callable | None = None
+    get: Callable | bool | None = None
     arg: str | None = None
     omit: Any = _ABSENT
 
@@ -599,9 +600,13 @@ def _decode_table(spec: Spec, value, path: str):
         if spec.build is not None:
             return spec.build(kwargs, path)
         args = {
-            (k.arg or k.name): kwargs[k.name] for k in spec.keys if k.name in kwargs
+            (k.arg or k.name): kwargs[k.name]
+            for k in spec.keys
+            if k.name in kwargs and k.arg != ""
         }
-        return spec.cls(**args)
+        obj = spec.cls(**args)
+        extra = [k.name for k in spec.keys if k.arg == ""]
+        return (obj, {k: kwargs[k] for k in extra if k in kwargs}) if extra else obj
     except _Fail:
         raise
     except (ValueError, TypeError) as err:
@@ -1557,11 +1562,10 @@ def _build_contact(kw: dict, path: str):
 
     args = {k: v for k, v in kw.items() if k not in ("shapes", "radius", "obstacles")}
     obstacles = tuple(ob for ob, _ in kw.get("obstacles", ()))
-    laws = {
-        i: lw for i, (_, lw) in enumerate(kw.get("obstacles", ())) if lw is not None
-    }
+    laws = {i: x["law"] for i, (_, x) in enumerate(kw.get("obstacles", ())) if x}
     shapes = {}
-    for i, (link, shape) in enumerate(kw.get("shapes", ())):
+    for i, (shape, extra) in enumerate(kw.get("shapes", ())):
+        link = extra["link"]
         if link in shapes:
             raise _Fail(
                 f"{path}.shapes[{i}].link", f"= {link}: this link already has a shape."
@@ -1574,14 +1578,8 @@ def _build_contact(kw: dict, path: str):
 def _build_scene(kw: dict, path: str):
     from ..model import Linkage
 
-    if kw["version"] != VERSION:
-        raise _Fail(
-            "version",
-            f"= {kw['version']}: this sorojax reads scene format version {VERSION}; "
-            "upgrade sorojax for a newer file.",
-        )
-    links = [link for link, _, _ in kw["links"]]
-    parents = [i if p is None else p for i, (_, p, _) in enumerate(kw["links"])]
+    links = [link for link, _ in kw["links"]]
+    parents = [x.get("parent", i) for i, (_, x) in enumerate(kw["links"])]
     n = len(links)
     for i, p in enumerate(parents):
         if not 0 <= p <= n:
@@ -1595,7 +1593,7 @@ def _build_scene(kw: dict, path: str):
                 f"= {p}: link {i + 1} must hang from the ground or an earlier link "
                 f"(1..{i}); list links parents first (this also rules out cycles).",
             )
-    placements = np.stack([np.eye(4) if g is None else g for _, _, g in kw["links"]])
+    placements = np.stack([x.get("placement", np.eye(4)) for _, x in kw["links"]])
     args = {
         k: kw[k]
         for k in (
@@ -1612,50 +1610,13 @@ def _build_scene(kw: dict, path: str):
         )
         if k in kw
     }
-    return Linkage(links, parents=parents, placements=placements, **args)
-
-
-def _link_builder(spec_name: str):
-    def build(kw, path):
-        spec = SPECS[spec_name]
-        args = {
-            (k.arg or k.name): kw[k.name]
-            for k in spec.keys
-            if k.name in kw and k.arg != ""
-        }
-        return spec.cls(**args), kw.get("parent"), kw.get("placement")
-
-    return build
-
-
-def _shape_builder(spec_name: str):
-    def build(kw, path):
-        spec = SPECS[spec_name]
-        args = {k.name: kw[k.name] for k in spec.keys if k.name in kw and k.arg != ""}
-        return kw["link"], spec.cls(**args)
-
-    return build
-
-
-def _obstacle_builder(spec_name: str):
-    def build(kw, path):
-        spec = SPECS[spec_name]
-        args = {k.name: kw[k.name] for k in spec.keys if k.name in kw and k.arg != ""}
-        return spec.cls(**args), kw.get("law")
-
-    return build
+    linkage = Linkage(links, parents=parents, placements=placements, **args)
+    return linkage, kw.get("statics", {}), kw.get("simulate", {})
 
 
 def _ensure_specs() -> None:
-    if SPECS:
-        return
-    _define()
-    for name in ("links.soft", "links.rigid"):
-        SPECS[name] = dataclasses.replace(SPECS[name], build=_link_builder(name))
-    for name in ("shapes.sphere", "shapes.capsule", "shapes.box"):
-        SPECS[name] = dataclasses.replace(SPECS[name], build=_shape_builder(name))
-    for name in [s for s in SPECS if s.startswith("obstacles.")]:
-        SPECS[name] = dataclasses.replace(SPECS[name], build=_obstacle_builder(name))
+    if not SPECS:
+        _define()
 
 
 # ============================================================== lines of keys
@@ -1773,28 +1734,17 @@ def loads_scene(text: str, name: str = "<string>") -> Scene:
                 f"= {raw['version']}: this sorojax reads scene format version "
                 f"{VERSION}; upgrade sorojax for a newer file.",
             )
-        linkage = _decode_table(SPECS["scene"], raw, "")
+        linkage, statics, simulate = _decode_table(SPECS["scene"], raw, "")
     except _Fail as fail:
         raise SceneError(
             name, fail.path, fail.message, _line_of(lines, fail.path)
         ) from None
     return Scene(
         linkage=linkage,
-        statics=_settings(raw, "statics", name, lines),
-        simulate=_settings(raw, "simulate", name, lines),
+        statics=dict(statics),
+        simulate=dict(simulate),
         description=raw.get("description", ""),
     )
-
-
-def _settings(raw, key, name, lines) -> dict:
-    if key not in raw:
-        return {}
-    try:
-        return dict(_decode_table(SPECS[key], raw[key], key))
-    except _Fail as fail:  # pragma: no cover - checked with the scene
-        raise SceneError(
-            name, fail.path, fail.message, _line_of(lines, fail.path)
-        ) from None
 
 
 def load_scene(path: str | os.PathLike) -> Scene:
