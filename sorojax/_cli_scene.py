@@ -167,28 +167,35 @@ def _fail_setting(scene, key: str, message: str):
     return SceneError(str(scene.path), key, message, _line_of(lines, key))
 
 
-def _statics_arguments(scene) -> dict:
-    """``solve_statics``'s keyword arguments from ``[statics]``, checked.
+def _sized_arguments(scene, table: str) -> dict:
+    """The keyword arguments of a scene's ``[statics]`` or ``[simulate]`` table.
 
-    The lengths of ``u`` and ``q0`` are checked against the model.
+    The vectors (``u``, ``q0``, ``qd0``; a function of t is kept) are checked
+    against the model's sizes and made arrays.
 
     Raises:
-        SceneError: ``u`` or ``q0`` of the wrong length.
+        SceneError: a vector of the wrong length, at its key and line.
     """
     import jax.numpy as jnp
 
     lk = scene.linkage
-    kw = dict(scene.statics)
-    for key, n, what in (("u", lk.n_inputs, "inputs"), ("q0", lk.n_dof, "coordinates")):
-        if key in kw and len(kw[key]) != n:
+    sizes = {
+        "u": (lk.n_inputs, "inputs"),
+        "q0": (lk.n_dof, "coordinates"),
+        "qd0": (lk.n_dof, "coordinates"),
+    }
+    kw = dict(getattr(scene, table))
+    for key, (n, what) in sizes.items():
+        value = kw.get(key)
+        if value is None or callable(value):
+            continue
+        if len(value) != n:
             raise _fail_setting(
                 scene,
-                f"statics.{key}",
-                f"= {list(kw[key])} has {len(kw[key])} entries: the model has {n} "
-                f"{what}.",
+                f"{table}.{key}",
+                f"= {list(value)} has {len(value)} entries: the model has {n} {what}.",
             )
-        if key in kw:
-            kw[key] = jnp.asarray(kw[key])
+        kw[key] = jnp.asarray(value)
     return kw
 
 
@@ -326,7 +333,7 @@ def _statics(args) -> int:
     from .io import SceneError
 
     try:
-        kw = _statics_arguments(scene)
+        kw = _sized_arguments(scene, "statics")
     except SceneError as err:
         raise _Exit(EXIT_INPUT, str(err)) from None
     lk = scene.linkage
@@ -431,23 +438,18 @@ def _save_figure(fig, path, overwrite):
 def _simulate(args) -> int:
     scene = _load(args.scene)
     lk = scene.linkage
-    kw = dict(scene.simulate)
-    t1 = args.t1 if args.t1 is not None else kw.pop("t1", 1.0)
+    from .io import SceneError
+
+    try:
+        kw = _sized_arguments(scene, "simulate")
+    except SceneError as err:
+        raise _Exit(EXIT_INPUT, str(err)) from None
+    t1 = kw.pop("t1", 1.0) if args.t1 is None else args.t1
     kw.pop("t1", None)
     if not t1 > 0:
         raise _Exit(EXIT_INPUT, f"--t1 {t1}: give a final time > 0 [s].")
-    import jax.numpy as jnp
     import numpy as np
 
-    for key, n in (("q0", lk.n_dof), ("qd0", lk.n_dof), ("u", lk.n_inputs)):
-        value = kw.get(key)
-        if value is not None and not callable(value):
-            if len(value) != n:
-                err = _fail_setting(
-                    scene, f"simulate.{key}", f"has {len(value)} entries: give {n}."
-                )
-                raise _Exit(EXIT_INPUT, str(err))
-            kw[key] = jnp.asarray(value)
     kinds = {
         "trajectory": (args.output, "-trajectory.npz"),
         "figure": (args.figure, "-trajectory.png"),

@@ -402,9 +402,9 @@ def test_bad_scene_file_is_refused(tmp_path, case, old, new, key, value):
     with pytest.raises(sj.SceneError) as info:
         scene = sj.load_scene(path)
         if case.startswith("statics input"):  # checked against the model by the CLI
-            from sorojax._cli_scene import _statics_arguments
+            from sorojax._cli_scene import _sized_arguments
 
-            _statics_arguments(scene)
+            _sized_arguments(scene, "statics")
     err = info.value
     message = str(err)
     assert str(path) in message, message

@@ -293,10 +293,10 @@ def _barrier_force(law) -> Array:
 
 
 def _row_stiffness(linkage: Linkage, n_rows: int, of=_penalty_stiffness) -> Array:
-    """Each contact row's penalty stiffness [N/m] (or another value ``of`` a law).
+    """Each contact row's penalty stiffness [N/m] (or another value ``of`` its law).
 
-    The law's k times the length a rod sample stands for (obstacle rows, first),
-    the law's k per point (rod pairs, tubes); 0 for barrier laws.
+    ``of(law)`` (default: the penalty's k, 0 for a barrier) times the length a rod
+    sample stands for (obstacle rows, first), per point (rod pairs, tubes).
     """
     contact = linkage.contact
     parts = []
