@@ -180,7 +180,7 @@ def make_train_step(env, s0, static, optimiser, pool, batch, periods=EPISODE):
             f"a multiple of {n_proc}."
         )
     share = batch // n_proc
-    options = sj.compiler_options()
+    options = sj.compiler_options(long_run=True)  # one program, run many times
 
     def share_grads(params, key, start):
         idx = jax.random.choice(key, pool.shape[0], (batch,), replace=False)

@@ -48,14 +48,22 @@ CPU_OPTIONS: dict[str, Any] = {
     # Matrix products on the calling thread: sorojax's are tiny (6 x 6 blocks, n_dof
     # up to ~60), and handing each to Eigen's thread pool cost more than the product
     # (warm 1.0-2.0x faster on a 2-core CPU, compiles within noise). XLA's YNNPACK
-    # fusions stay on: without them (xla_cpu_experimental_ynn_fusion_type="") warm
-    # runs are up to 1.25x faster but compiles up to 30 % longer; a long run or a
-    # sweep may add that option to its own jit.
+    # fusions stay on here (LONG_RUN_OPTIONS turns them off).
     "xla_cpu_multi_thread_eigen": False,
 }
 
+LONG_RUN_OPTIONS: dict[str, Any] = {
+    # XLA's YNNPACK fusions off: sorojax's reductions and products are 6 x 6 blocks
+    # and a few dozen coordinates, for which XLA's own loops run faster (2-core CPU:
+    # the cable arm's reverse-mode training step of examples/learn_reach.py 0.89-0.90
+    # s against 0.96-0.98 s, a constant-step grasp step 180 against 213 us), but the
+    # compile takes 5-30 % longer; so for programs that run many times, not by
+    # default.
+    "xla_cpu_experimental_ynn_fusion_type": "",
+}
 
-def compiler_options() -> dict[str, Any]:
+
+def compiler_options(long_run: bool = False) -> dict[str, Any]:
     """XLA options sorojax compiles its programs with (a fresh dict each call).
 
     On CPU, those of :data:`CPU_OPTIONS` that this XLA knows
@@ -64,8 +72,13 @@ def compiler_options() -> dict[str, Any]:
     ``SOROJAX_XLA_OPTIONS=off``. Use it for your own jit around sorojax calls::
 
         jax.jit(f, compiler_options=sorojax.compiler_options())
+
+    Args:
+        long_run: also :data:`LONG_RUN_OPTIONS` (those this XLA knows), for a
+            program that runs many times (a training step, a long sweep): its
+            calls run up to ~10 % faster, its compile takes 5-30 % longer.
     """
-    return dict(_probed_options())
+    return dict(_probed_options(long_run))
 
 
 def _accepted(options: dict[str, Any]) -> bool:
@@ -79,15 +92,16 @@ def _accepted(options: dict[str, Any]) -> bool:
 
 
 @functools.cache
-def _probed_options() -> dict[str, Any]:
+def _probed_options(long_run: bool = False) -> dict[str, Any]:
     if os.environ.get("SOROJAX_XLA_OPTIONS", "").lower() == "off":
         return {}
     if jax.default_backend() != "cpu":
         return {}
-    if _accepted(CPU_OPTIONS):  # one probe where XLA knows them all
-        return dict(CPU_OPTIONS)
+    wanted = {**CPU_OPTIONS, **LONG_RUN_OPTIONS} if long_run else CPU_OPTIONS
+    if _accepted(wanted):  # one probe where XLA knows them all
+        return dict(wanted)
     # an older or newer XLA: each option it knows (an unknown one fails the compile)
-    return {k: v for k, v in CPU_OPTIONS.items() if _accepted({k: v})}
+    return {k: v for k, v in wanted.items() if _accepted({k: v})}
 
 
 RUNTIME_FLAGS: tuple[str, ...] = (

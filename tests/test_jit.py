@@ -78,6 +78,8 @@ def test_this_xla_knows_the_options():
     if not jax.__version__.startswith("0.10."):  # XLA may drop or rename the option
         pytest.skip(f"the option was verified with jax 0.10; this is {jax.__version__}")
     assert sj.compiler_options() == sjit.CPU_OPTIONS
+    long_run = sj.compiler_options(long_run=True)
+    assert long_run == {**sjit.CPU_OPTIONS, **sjit.LONG_RUN_OPTIONS}
 
 
 _RUNTIME_SCRIPT = """
@@ -175,7 +177,8 @@ def test_jit_uses_the_options_at_top_level_only(monkeypatch):
 def test_results_agree_with_xla_default_options(arm):
     """Mass matrix, generalised force and statics compiled with sorojax's options
     equal the same programs under a plain ``jax.jit`` with XLA's defaults (fusion
-    emitters on and multi-threaded Eigen products, set explicitly:
+    emitters on and multi-threaded Eigen products, set explicitly; the mass matrix
+    and force also with ``compiler_options(long_run=True)``:
     tests/conftest.py turns both off for the suite's own programs) to rounding:
     1e-12 relative (the options change code generation and threading, not the
     arithmetic)."""
@@ -193,6 +196,11 @@ def test_results_agree_with_xla_default_options(arm):
     M1, f1 = jax.jit(terms, compiler_options=xla_defaults)(q, qd)
     np.testing.assert_allclose(M0, M1, rtol=1e-12, atol=1e-14)
     np.testing.assert_allclose(f0, f1, rtol=1e-12, atol=1e-12)
+    # and with the long-run options (XLA's YNNPACK fusions off)
+    long_run = sj.compiler_options(long_run=True)
+    M2, f2 = jax.jit(terms, compiler_options=long_run)(q, qd)
+    np.testing.assert_allclose(M0, M2, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(f0, f2, rtol=1e-12, atol=1e-12)
 
     def statics(th):
         sol = sj.solve_statics(arm, u=jnp.stack([th]))
