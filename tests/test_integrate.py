@@ -159,6 +159,8 @@ def test_bad_arguments(rod):
         sj.simulate(rod, 0.1, ts=jnp.array([0.0, 0.2]))
 
 
+@pytest.mark.slow  # three programs with Newton root finders (~16 s); sorojax's own
+# constant-step solvers' orders are checked by tests/test_fixed_step.py
 def test_constant_step_implicit_solvers_converge_at_their_order(rod):
     """Constant steps with implicit solvers (root-finder tolerances from rtol/atol).
 

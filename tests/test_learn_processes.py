@@ -9,6 +9,7 @@ import sys
 
 import jax
 import numpy as np
+import pytest
 
 WORKER = pathlib.Path(__file__).with_name("_learn_worker.py")
 
@@ -19,6 +20,7 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
+@pytest.mark.slow  # three worker processes, each compiling the training step (~30 s)
 def test_two_process_learning_step_equals_one_process(tmp_path):
     """Two Adam steps on a batch of 8 targets (4-period episodes of the four-cable
     arm), split 4 + 4 over two processes whose losses and gradients are summed by

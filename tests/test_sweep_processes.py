@@ -55,6 +55,7 @@ def test_two_processes_sweep_as_one(tmp_path):
     assert np.all(np.diff(one["tips"]) > 0)  # more load, more deflection
 
 
+@pytest.mark.slow  # three more launches (~25 s of CPU); the cantilever's split is default
 def test_two_processes_sweep_the_cable_arm_as_one(tmp_path):
     """256 statics of the four-cable arm (random tensions up to 10 N) over two
     processes: the gathered tips equal a single-process sweep's to 1e-12 m, every
