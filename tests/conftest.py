@@ -68,14 +68,28 @@ jax.config.update("jax_persistent_cache_min_entry_size_bytes", -1)
 # files in this order, each the next one when it is free, so that no long file is
 # left to run alone at the end. Unlisted files follow in their own order.
 _HEAVY_FIRST = (
-    "test_contact.py",  # 98 s
-    "test_docs.py",  # 97
-    "test_docs_pages.py",  # 75
-    "test_closed_loops.py",  # 68
-    "test_statics.py",  # 61
-    "test_dynamics.py",  # 56
-    "test_example_learn.py",  # 55
-    "test_learn_processes.py",  # ~50 (three processes)
+    "test_contact.py",  # 83 s
+    "test_docs.py",  # 74
+    "test_docs_pages.py",  # 54
+    "test_closed_loops.py",  # 46
+    "test_fixed_step.py",  # 42
+    "test_statics.py",  # 42
+    "test_dynamics.py",  # 39
+    "test_rosenbrock.py",  # 39
+    "test_actuation.py",  # 37
+    "test_contact_kernels.py",  # 37
+    "test_jit.py",  # 33
+    "test_adequacy.py",  # 33
+    "test_integrate.py",  # 33
+    "test_size_class.py",  # 31
+    "test_example_learn.py",  # 31
+    "test_example_design.py",  # 30
+    "test_env.py",  # 29
+    "test_example_identification.py",  # 23
+    "test_kinematics.py",  # 23
+    "test_examples.py",  # 23
+    "test_lie.py",  # 19
+)
     "test_actuation.py",  # 54
     "test_rosenbrock.py",  # 53
     "test_jit.py",  # 50
