@@ -130,7 +130,9 @@ def main(argv=None):
     phis = np.linspace(0.0, 2 * np.pi, a.grid, endpoint=False)
     grid = jnp.asarray([(A, ph) for A in As for ph in phis])
     t0 = time.perf_counter()
-    opts = sj.compiler_options()  # sorojax's XLA options for these programs too
+    # sorojax's XLA options for these programs too, for programs run many times
+    # (the ascent's 17 rollouts: 34 s against 37 s)
+    opts = sj.compiler_options(long_run=True)
     values = np.asarray(jax.jit(jax.vmap(dpc), compiler_options=opts)(grid))
     values = values.reshape(a.grid, a.grid)
     t_grid = time.perf_counter() - t0
