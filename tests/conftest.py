@@ -90,19 +90,6 @@ _HEAVY_FIRST = (
     "test_examples.py",  # 23
     "test_lie.py",  # 19
 )
-    "test_actuation.py",  # 54
-    "test_rosenbrock.py",  # 53
-    "test_jit.py",  # 50
-    "test_adequacy.py",  # 49
-    "test_size_class.py",  # 46
-    "test_integrate.py",  # 38
-    "test_example_design.py",  # 38
-    "test_examples.py",  # 36
-    "test_env.py",  # 34
-    "test_kinematics.py",  # 34
-    "test_example_identification.py",  # 30
-    "test_lie.py",  # 23
-)
 
 
 def pytest_collection_modifyitems(config, items):
