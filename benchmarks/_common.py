@@ -15,6 +15,13 @@ ROOT = Path(__file__).resolve().parent.parent
 # sorojax.compile_mode). latency.py times the tiers on their own.
 os.environ.setdefault("SOROJAX_COMPILE", "full")
 
+# XLA's CPU runtime flags as the examples set them (sorojax.set_runtime_flags), before
+# any JAX array exists: a script that started JAX's backend before importing this
+# module runs without them (recorded in each result's environment).
+import sorojax as _sj  # noqa: E402
+
+RUNTIME_FLAGS_SET = _sj.set_runtime_flags()
+
 
 def git_state():
     """HEAD commit and whether sorojax/ has uncommitted changes, or None without git."""
@@ -59,6 +66,7 @@ def environment(**extra):
         "platform": platform.platform(),
         "processor": platform.processor() or platform.machine(),
         "x64": bool(jax.config.jax_enable_x64),
+        "xla_flags": os.environ.get("XLA_FLAGS", ""),
         "load_average_at_start": list(os.getloadavg()),
         "git": git_state(),
     } | extra

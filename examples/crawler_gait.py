@@ -44,6 +44,8 @@ import numpy as np  # noqa: E402
 
 import sorojax as sj  # noqa: E402
 
+sj.set_runtime_flags()  # XLA's CPU runtime flags: before any JAX array exists
+
 G = 9.81
 L, R, RHO, E = 0.3, 0.01, 1000.0, 1e6
 FREQ = 2.0  # gait frequency [Hz]

@@ -37,6 +37,8 @@ import numpy as np  # noqa: E402
 import sorojax as sj  # noqa: E402
 from sorojax.scenes import GRASP_LIFT, grasp_inputs  # noqa: E402
 
+sj.set_runtime_flags()  # XLA's CPU runtime flags: before any JAX array exists
+
 G = 9.81
 FINGER, R_FINGER, R_BALL, M_BALL, GAP = 0.08, 0.006, 0.02, 0.02, 0.002
 LIFT = GRASP_LIFT

@@ -60,6 +60,8 @@ import numpy as np  # noqa: E402
 
 import sorojax as sj  # noqa: E402
 
+sj.set_runtime_flags()  # XLA's CPU runtime flags: before any JAX array exists
+
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import grasp  # noqa: E402
 

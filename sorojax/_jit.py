@@ -199,7 +199,8 @@ def compile_mode() -> str:
       shape, as ``jax.jit``) compiles it with LLVM at -O0; once its calls have run
       for as long as that compile took, it is compiled at XLA's default level, which
       later calls use. Programs that run long by design (``simulate``'s
-      integration) start at the default level.
+      integration) start at the default level, with
+      ``compiler_options(long_run=True)``.
     * ``"full"``: XLA's default level from the first call (warm timings, bit-for-bit
       repeatable results).
     * ``"fast"``: -O0 for good (short scripts, test suites).
@@ -308,12 +309,14 @@ def _ready(tree) -> bool:
     return all(x.is_ready() for x in jax.tree.leaves(tree) if isinstance(x, jax.Array))
 
 
-def jit(fun: Callable, *, tiered: bool = True) -> Callable:
+def jit(fun: Callable, *, tiered: bool = True, long_run: bool = False) -> Callable:
     """``eqx.filter_jit(fun)`` compiled as sorojax compiles its own programs.
 
     At top level: with :func:`compiler_options` and in the tiers of
     :func:`compile_mode` (``tiered=False``: at XLA's default level in the tiered
-    mode, for programs whose first call runs long, e.g. a whole simulation). Inside
+    mode, for programs whose first call runs long, e.g. a whole simulation;
+    ``long_run``: with ``compiler_options(long_run=True)`` at the default level, for
+    programs that run long, as a simulation's integration does). Inside
     another trace (a ``jit``, ``grad``, ``vmap``) it is the plain
     ``eqx.filter_jit(fun)``: JAX takes compiler options on top-level jits only. The
     options are probed on the first top-level call (not at import, which must not
@@ -340,13 +343,13 @@ def jit(fun: Callable, *, tiered: bool = True) -> Callable:
 
     def full():
         if not tuned:
-            opts = _probed_options()
+            opts = _probed_options(long_run)
             tuned.append(eqx.filter_jit(fun, compiler_options=opts) if opts else plain)
         return tuned[0]
 
     def new_program(args, kwargs):
         return _TieredProgram(
-            functools.partial(plain.lower, *args, **kwargs), _probed_options()
+            functools.partial(plain.lower, *args, **kwargs), _probed_options(long_run)
         )
 
     def tiers_for(mode: str) -> bool:
@@ -390,7 +393,7 @@ def jit(fun: Callable, *, tiered: bool = True) -> Callable:
         key = _signature(args, kwargs)
         if key in programs:
             return None
-        _probed_options()  # probed here, not in the thread
+        _probed_options(long_run)  # probed here, not in the thread
         future = programs[key] = _COMPILE_THREAD.submit(new_program, args, kwargs)
         return future
 
@@ -415,7 +418,7 @@ def jit(fun: Callable, *, tiered: bool = True) -> Callable:
             future = programs[key] = _COMPILE_THREAD.submit(
                 _TieredProgram,
                 lambda: lowered,
-                _probed_options(),
+                _probed_options(long_run),
                 time.perf_counter() - start,
             )
             return future
@@ -423,7 +426,7 @@ def jit(fun: Callable, *, tiered: bool = True) -> Callable:
             return None
         lowered = full().lower(*args, **kwargs)
         future = prepared[key] = _COMPILE_THREAD.submit(
-            lowered.compile, _probed_options() or None
+            lowered.compile, _probed_options(long_run) or None
         )
         return future
 
