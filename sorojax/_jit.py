@@ -56,9 +56,9 @@ LONG_RUN_OPTIONS: dict[str, Any] = {
     # XLA's YNNPACK fusions off: sorojax's reductions and products are 6 x 6 blocks
     # and a few dozen coordinates, for which XLA's own loops run faster (2-core CPU:
     # the cable arm's reverse-mode training step of examples/learn_reach.py 0.89-0.90
-    # s against 0.96-0.98 s, a constant-step grasp step 180 against 213 us), but the
-    # compile takes 5-30 % longer; so for programs that run many times, not by
-    # default.
+    # s against 0.96-0.98 s, the clamped 12-DoF rod's forward dynamics 25 against 30
+    # us), but compiles take 0-5 % longer (up to 30 % measured on other programs);
+    # so for programs that run many times, not by default.
     "xla_cpu_experimental_ynn_fusion_type": "",
 }
 
@@ -76,7 +76,8 @@ def compiler_options(long_run: bool = False) -> dict[str, Any]:
     Args:
         long_run: also :data:`LONG_RUN_OPTIONS` (those this XLA knows), for a
             program that runs many times (a training step, a long sweep): its
-            calls run up to ~10 % faster, its compile takes 5-30 % longer.
+            calls run 5-20 % faster on small models, its compile takes up to 30 %
+            longer (0-5 % on a simulation's and a training step's programs).
     """
     return dict(_probed_options(long_run))
 
