@@ -20,7 +20,7 @@ os.environ.setdefault("SOROJAX_COMPILE", "full")
 # module runs without them (recorded in each result's environment).
 import sorojax as _sj  # noqa: E402
 
-RUNTIME_FLAGS_SET = _sj.set_runtime_flags()
+_sj.set_runtime_flags()
 
 
 def git_state():

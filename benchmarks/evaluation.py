@@ -47,11 +47,9 @@ import statistics
 import sys
 import time
 
-import sorojax as sj
+import jax
 
-sj.set_runtime_flags()  # as the examples: before JAX starts its backend
-
-import jax  # noqa: E402
+import sorojax as sj  # runtime flags: set by _common (imported before any array)
 
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_enable_compilation_cache", False)
