@@ -21,7 +21,6 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from ..kinematics._recursion import (
-    _Ad,
     chain_layout,
     chain_terms,
     from_step_end,
@@ -33,6 +32,7 @@ from ..kinematics._recursion import (
     step_jacobians_transpose,
     steps,
     tangent_transpose_apply,
+    to_step_end_wrench,
     with_leaves,
 )
 from ..model._precompute import LinkageData
@@ -90,21 +90,21 @@ def force_from_wrenches(
     # over the point list: a link's points are contiguous and in slot order, so the
     # sum over its points from index i on is R[i] - R[end + 1] (gathers only, no
     # scatter: scatters are slow under vmap).
-    Wt = jnp.einsum("pba,pb->pa", ct.Ginv[pl, ps], W)
+    Wt = from_step_end(ct.RG[pl, ps], ct.pG[pl, ps], W)
     R = jnp.flip(jnp.cumsum(jnp.flip(Wt, 0), 0), 0)
     R = jnp.concatenate([R, jnp.zeros_like(R[:1])])
     first = np.searchsorted(pl, rows)  # first point of each link
     stop = np.searchsorted(pl, rows, side="right")  # one past its last point
     own = R[first] - R[stop]
     # Children's totals enter at their parent's tip (carried tip to base).
-    tipT = jnp.swapaxes(ct.Ginv[rows, lay.tip_slot], -1, -2)
+    R_tip, p_tip = ct.RG[rows, lay.tip_slot], ct.pG[rows, lay.tip_slot]
     child = [jnp.zeros(6, W.dtype) for _ in range(n_links)]
     for i in range(n_links - 1, -1, -1):
         parent = data.links[i].parent
         if parent:
-            total = own[i] + tipT[i] @ child[i]
+            total = own[i] + from_step_end(R_tip[i], p_tip[i], child[i])
             child[parent - 1] = child[parent - 1] + total
-    at_tip = jnp.einsum("lab,lb->la", tipT, jnp.stack(child))
+    at_tip = from_step_end(R_tip, p_tip, jnp.stack(child))
     # Step b of a link joins its slots b and b + 1: y_b = Ad(G_b)^T (sum of the
     # link's points at slots > b, and the children's wrench at its tip).
     sl, ss = lay.step_link, lay.step_slot
@@ -116,8 +116,7 @@ def force_from_wrenches(
         dtype=int,
     ).reshape(-1)
     suffix = R[after] - R[stop[sl]] + at_tip[sl]
-    AdG = _Ad(ct.RG[sl, ss], ct.pG[sl, ss])
-    y = jnp.einsum("sba,sb->sa", AdG, suffix)
+    y = to_step_end_wrench(ct.RG[sl, ss], ct.pG[sl, ss], suffix)
     z = jnp.einsum("sba,sb->sa", k.T, y)
     return step_jacobians_transpose(data, k, z) + F_leaves
 

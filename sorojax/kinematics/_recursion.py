@@ -28,6 +28,7 @@ joints, only the short tree loop does. Jacobian columns are full width (n_dof) s
 that trees compose without bookkeeping.
 """
 
+import functools
 from typing import NamedTuple
 
 import jax
@@ -42,6 +43,7 @@ from ._step import ad_apply as _ad_apply
 from ._step import ad_transpose_apply as _ad_transpose_apply
 from ._step import (
     exp_and_tangent,
+    exp_and_tangent_many,
     magnus6,
     magnus6_apply,
     magnus6_apply_transpose,
@@ -98,7 +100,7 @@ def steps(data: LinkageData, q, qd=None, st=None) -> Steps:
     h, c = st.h[:, None], st.c[:, None]
     Omega = 0.5 * h * (xi1 + xi2) + c * _ad_apply(xi1, xi2)
     if qd is None:
-        R, p, T = jax.vmap(exp_and_tangent)(Omega)
+        R, p, T = exp_and_tangent_many(Omega)
         return Steps(R, p, T, xi1, xi2)
     xid = jnp.einsum("szan,n->sza", st.Phi_z, qd)
     xid1, xid2 = xid[:, 0], xid[:, 1]
@@ -114,7 +116,7 @@ def _steps6(st, xi, qd) -> Steps:
     """:func:`steps` for 6th-order steps, from the strains ``xi`` at the nodes."""
     Omega = magnus6(xi, st.h)
     if qd is None:
-        R, p, T = jax.vmap(exp_and_tangent)(Omega)
+        R, p, T = exp_and_tangent_many(Omega)
         return Steps(R, p, T, None, None, xi=xi)
     xid = jnp.einsum("szan,n->sza", st.Phi_z, qd)
 
@@ -284,13 +286,16 @@ def _gather(x, idx, fill, extra: int):
     return jnp.concatenate([x, pad])[idx]
 
 
+@functools.partial(jax.custom_jvp, nondiff_argnums=(2,))
 def _prefix_poses(R, p, sequential: bool = False):
     """Poses ``G_a = E_0 ... E_{a-1}`` relative to each chain's first point.
 
     ``R, p``: ``(n_chains, m, ...)``; returns ``(R_G, p_G)`` of shape
     ``(n_chains, m + 1, ...)`` (``G_0 = I``), by a log-depth associative scan, or
     with ``sequential`` by a ``lax.scan`` along the chains (one composition in the
-    program instead of one per level).
+    program instead of one per level). Its derivative is a prefix sum
+    (:func:`_prefix_poses_jvp`), not the scan's own: differentiated, the scan
+    repeats its small products once per level or step, for every tangent.
     """
 
     def compose(a, b):
@@ -316,6 +321,29 @@ def _prefix_poses(R, p, sequential: bool = False):
         jnp.concatenate([eye, RG], axis=1),
         jnp.concatenate([jnp.zeros_like(p[:, :1]), pG], axis=1),
     )
+
+
+@_prefix_poses.defjvp
+def _prefix_poses_jvp(sequential, primals, tangents):
+    """Tangents of the prefix poses as one prefix sum.
+
+    With ``G_{a+1} = G_a E_a``, ``dG_a = sum_{b<a} G_b dE_b E_{b+1} ... E_{a-1} =
+    S_a G_a``, ``S_a = sum_{b<a} G_b dE_b G_{b+1}^-1``: in blocks,
+    ``S = [[A, c], [0, 0]]`` with ``A_b = R_b dR_b R_{b+1}^T`` and
+    ``c_b = R_b dp_b - A_b p_{b+1}`` (``R, p`` of ``G``), so ``dR_G = S_A R_G`` and
+    ``dp_G = S_A p_G + S_c``. Exact for any tangents ``dR, dp`` (not only those
+    of rotations), linear in them and batched over all steps.
+    """
+    R, p = primals
+    dR, dp = tangents
+    RG, pG = _prefix_poses(R, p, sequential)
+    A = RG[:, :-1] @ dR @ jnp.swapaxes(RG[:, 1:], -1, -2)
+    c = jnp.einsum("nsab,nsb->nsa", RG[:, :-1], dp)
+    c = c - jnp.einsum("nsab,nsb->nsa", A, pG[:, 1:])
+    SA, Sc = _cumsum0(A), _cumsum0(c)
+    dRG = SA @ RG
+    dpG = jnp.einsum("nsab,nsb->nsa", SA, pG) + Sc
+    return (RG, pG), (dRG, dpG)
 
 
 def _cumsum0(x):
@@ -457,11 +485,24 @@ def to_step_end(R, p, x):
 def from_step_end(R, p, W):
     """``Ad(E)^-T W`` for wrenches ``W`` (moment first) at steps' ends ``E = (R, p)``.
 
-    The same wrench at the step's start: ``(R m + p x R f, R f)``.
+    The same wrench at the step's start: ``(R m + p x R f, R f)``, batched over
+    the leading axes.
     """
-    Rw = jnp.einsum("lab,lkb->lka", R, W.reshape(-1, 2, 3))
-    m, f = Rw[:, 0], Rw[:, 1]
+    Rw = jnp.einsum("...ab,...kb->...ka", R, W.reshape(W.shape[:-1] + (2, 3)))
+    m, f = Rw[..., 0, :], Rw[..., 1, :]
     return jnp.concatenate([m + jnp.cross(p, f), f], axis=-1)
+
+
+def to_step_end_wrench(R, p, W):
+    """``Ad(E)^T W`` for wrenches ``W`` (moment first) and poses ``E = (R, p)``.
+
+    A wrench given at a step's start, in the frame of its end:
+    ``(R^T (m - p x f), R^T f)``; the inverse of :func:`from_step_end`. Batched
+    over the leading axes.
+    """
+    m, f = W[..., :3], W[..., 3:]
+    out = jnp.stack([m - jnp.cross(p, f), f], axis=-2)
+    return jnp.einsum("...ba,...kb->...ka", R, out).reshape(W.shape)
 
 
 def leaf_steps(data: LinkageData, q, qd=None) -> Steps | None:
