@@ -40,6 +40,7 @@ from jaxtyping import Array, Float
 from ..lie import Ad, Ad_inv, ad
 from ..model._precompute import LinkageData
 from ._step import ad_apply as _ad_apply
+from ._step import ad_apply_many as _ad_apply_many
 from ._step import ad_transpose_apply as _ad_transpose_apply
 from ._step import (
     exp_and_tangent,
@@ -144,6 +145,21 @@ def step_jacobians(data: LinkageData, k: Steps, V, st=None) -> Array:
     h, c = st.h[:, None, None], st.c[:, None, None]
     ad1, ad2 = jax.vmap(ad)(k.xi1), jax.vmap(ad)(k.xi2)
     return 0.5 * h * (P1 + P2) + c * (ad1 @ P2 - ad2 @ P1)
+
+
+def step_rates(st, k: Steps, qd) -> Array:
+    """``dOmega qd`` of the steps ``st`` (made into ``k``): ``(n_steps, 6)``.
+
+    :func:`step_jacobians` of the one column ``qd``, by cross products (as
+    :func:`steps` forms its rates) instead of a 6 x 6 matrix per step.
+    """
+    xid = jnp.einsum("szan,n->sza", st.Phi_z, qd)
+    if st.order == 6:
+        return magnus6_apply(k.xi, st.h, xid[..., None, :])[..., 0, :]
+    xid1, xid2 = xid[:, 0], xid[:, 1]
+    h, c = st.h[:, None], st.c[:, None]
+    a12, a21 = _ad_apply_many([(k.xi1, xid2), (k.xi2, xid1)])
+    return 0.5 * h * (xid1 + xid2) + c * (a12 - a21)
 
 
 def step_jacobians_transpose(data: LinkageData, k: Steps, z, st=None) -> Array:
@@ -639,13 +655,11 @@ def point_rates(data: LinkageData, q, qd) -> PointRates:
     :func:`kinematics_and_rates` without the leaves' Jacobians and rates: a leaf
     costs its step, its pose and its twist.
     """
-    g, X, (_, _, lay) = _tree_pass(data, q, None, qd, core_only=True)
-    n = data.n_dof
-    J, eta, etadot = X[..., :n], X[..., n], X[..., n + 1]
+    g, J, (eta, etadot), (_, _, lay) = _tree_pass(data, q, None, qd, core_only=True)
     kl = leaf_steps(data, q)
     if kl is None:
         return PointRates(g, eta, J, etadot, None)
-    Od = step_jacobians(data, kl, qd[:, None], st=data.leaf_steps)[..., 0]
+    Od = step_rates(data.leaf_steps, kl, qd)
     eta_l = to_step_end(kl.R, kl.p, eta[lay.leaf_row] + _tangent_apply(kl.T, Od))
     g_all = with_leaves(lay, g, leaf_poses(lay, g, kl))
     return PointRates(g_all, with_leaves(lay, eta, eta_l), J, etadot, kl)
@@ -658,19 +672,63 @@ def _tree_pass(data: LinkageData, q, V, qd, core_only: bool = False):
     (:func:`chain_terms`); the loop over the static tree only carries the tips
     (one pose product and one 6 x 6 product per link), and every point is then
     composed with its link's base in one batch; then every leaf from its chain
-    point, in one batch. ``core_only``: return the chain's points only, as
-    ``(g, [J | eta | etadot], records)``.
+    point, in one batch. When every link starts at the ground (a single rod, say)
+    the bases are zero and a point's terms are its chain's own. Returns ``(g, J,
+    rates)`` with ``rates = (eta, etadot)`` (None without ``qd``); ``core_only``:
+    the chain's points only, and the records ``(k, ct, lay)`` as a fourth item.
     """
-    n_links = len(data.links)
     dtype = q.dtype
     cols = data.n_dof if V is None else V.shape[1]
     lay = chain_layout(data)
     k = steps(data, q, qd)
     ct = chain_terms(data, k, lay, step_jacobians(data, k, V))
+    rates = qd is not None
+    g_pts = point_poses(ct, lay, link_base_poses(data, ct, lay))
+    pl, ps = lay.point_link, lay.point_slot
+    if all(ld.parent == 0 for ld in data.links):
+        J = ct.relJ[pl, ps]
+        eta = ct.rel_eta[pl, ps] if rates else None
+        etadot = ct.rel_etadot[pl, ps] if rates else None
+    else:
+        J, eta, etadot = _tree_compose(data, ct, lay, cols, rates, dtype)
+    if core_only:
+        return g_pts, J, (eta, etadot), (k, ct, lay)
+    kl = leaf_steps(data, q, qd)
+    if kl is not None:
+        # a leaf is one step from its chain point: the chain's formulas with a
+        # chain of one step (chain_terms) and the chain point's [J | eta | etadot]
+        Gi = _Ad_inv(kl.R, kl.p)
+        st = data.leaf_steps
+        rel = kl.T @ step_jacobians(data, kl, V, st=st)
+        X = J[lay.leaf_row]
+        if rates:
+            y = jnp.einsum("lab,lb->la", kl.T, kl.Od)
+            yd = jnp.einsum("lab,lb->la", kl.Td, kl.Od)
+            yd = yd + jnp.einsum("lab,lb->la", kl.T, kl.Odd)
+            rel = jnp.concatenate([rel, y[..., None], yd[..., None]], axis=-1)
+            X = jnp.concatenate(
+                [X, eta[lay.leaf_row][..., None], etadot[lay.leaf_row][..., None]],
+                axis=-1,
+            )
+        Xl = _compose(Gi, X, Gi @ rel, cols, rates)
+        g_pts = with_leaves(lay, g_pts, leaf_poses(lay, g_pts, kl))
+        J = with_leaves(lay, J, Xl[..., :cols])
+        if rates:
+            eta = with_leaves(lay, eta, Xl[..., cols])
+            etadot = with_leaves(lay, etadot, Xl[..., cols + 1])
+    return g_pts, J, (eta, etadot) if rates else None
+
+
+def _tree_compose(data: LinkageData, ct: ChainTerms, lay: ChainLayout, cols, rates,
+                  dtype):  # fmt: skip
+    """``(J, eta, etadot)`` at the chain's points of a tree (see :func:`_tree_pass`).
+
+    The loop over the links carries each link's tip ``[J | eta | etadot]`` to its
+    children's start; every point is then composed with its link's start.
+    """
+    n_links = len(data.links)
     rows = np.arange(n_links)
     tip_Gi = ct.Ginv[rows, lay.tip_slot]
-    rates = qd is not None
-    # Base state of each link (its parent's tip): pose and [J | eta | etadot].
     tip_rel = ct.relJ[rows, lay.tip_slot]
     if rates:
         tip_rel = jnp.concatenate(
@@ -692,7 +750,6 @@ def _tree_pass(data: LinkageData, q, V, qd, core_only: bool = False):
             X = _compose(tip_Gi[i], X0, tip_rel[i], cols, rates)
         base_X.append(X0)
         tips.append(X)
-    g_pts = point_poses(ct, lay, link_base_poses(data, ct, lay))
     pl, ps = lay.point_link, lay.point_slot
     rel = ct.relJ[pl, ps]
     if rates:
@@ -701,25 +758,9 @@ def _tree_pass(data: LinkageData, q, V, qd, core_only: bool = False):
             axis=-1,
         )
     X = _compose(ct.Ginv[pl, ps], jnp.stack(base_X)[pl], rel, cols, rates)
-    if core_only:
-        return g_pts, X, (k, ct, lay)
-    kl = leaf_steps(data, q, qd)
-    if kl is not None:
-        # a leaf is one step from its chain point: the chain's formulas with a
-        # chain of one step (chain_terms) and the chain point's [J | eta | etadot]
-        Gi = _Ad_inv(kl.R, kl.p)
-        st = data.leaf_steps
-        rel = kl.T @ step_jacobians(data, kl, V, st=st)
-        if rates:
-            y = jnp.einsum("lab,lb->la", kl.T, kl.Od)
-            yd = jnp.einsum("lab,lb->la", kl.Td, kl.Od)
-            yd = yd + jnp.einsum("lab,lb->la", kl.T, kl.Odd)
-            rel = jnp.concatenate([rel, y[..., None], yd[..., None]], axis=-1)
-        Xl = _compose(Gi, X[lay.leaf_row], Gi @ rel, cols, rates)
-        g_pts = with_leaves(lay, g_pts, leaf_poses(lay, g_pts, kl))
-        X = with_leaves(lay, X, Xl)
-    J = X[..., :cols]
-    return g_pts, J, (X[..., cols], X[..., cols + 1]) if rates else None
+    if not rates:
+        return X, None, None
+    return X[..., :cols], X[..., cols], X[..., cols + 1]
 
 
 def _compose(Gi, X0, rel, cols: int, rates: bool):
