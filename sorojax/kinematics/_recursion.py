@@ -719,8 +719,9 @@ def _tree_pass(data: LinkageData, q, V, qd, core_only: bool = False):
     return g_pts, J, (eta, etadot) if rates else None
 
 
-def _tree_compose(data: LinkageData, ct: ChainTerms, lay: ChainLayout, cols, rates,
-                  dtype):  # fmt: skip
+def _tree_compose(
+    data: LinkageData, ct: ChainTerms, lay: ChainLayout, cols, rates, dtype
+):
     """``(J, eta, etadot)`` at the chain's points of a tree (see :func:`_tree_pass`).
 
     The loop over the links carries each link's tip ``[J | eta | etadot]`` to its
