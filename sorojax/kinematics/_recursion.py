@@ -81,7 +81,7 @@ class Steps(NamedTuple):
     xi: Array | None = None
 
 
-def steps(data: LinkageData, q, qd=None, st=None) -> Steps:
+def steps(data: LinkageData, q, qd=None, st=None, many: bool = True) -> Steps:
     """Twists and exp/tangent kernels of every step of the linkage in one batch.
 
     ``st``: the steps to evaluate (default ``data.steps``, the chain's;
@@ -91,17 +91,20 @@ def steps(data: LinkageData, q, qd=None, st=None) -> Steps:
     steps at once, then one vectorised :func:`exp_and_tangent` (with its forward-mode
     rate when ``qd`` is given). 6th-order steps: :func:`magnus6`, the rates by
     forward mode (``Od = dOmega[xid]``, ``Odd = d^2 Omega[xid, xid]``, as the
-    4th-order ``Od`` and ``Odd`` are).
+    4th-order ``Od`` and ``Odd`` are). Without ``qd``, ``many`` takes the kernel
+    whose derivative serves many tangents at once (:func:`exp_and_tangent_many`:
+    statics' Newton tangent, kinematics queries); ``many=False`` the plain one,
+    cheaper for a single tangent or cotangent (the dynamics).
     """
     st = data.steps if st is None else st
     xi = jnp.einsum("szan,n->sza", st.Phi_z, q) + st.xi_ref_z
     if st.order == 6:
-        return _steps6(st, xi, qd)
+        return _steps6(st, xi, qd, many)
     xi1, xi2 = xi[:, 0], xi[:, 1]
     h, c = st.h[:, None], st.c[:, None]
     Omega = 0.5 * h * (xi1 + xi2) + c * _ad_apply(xi1, xi2)
     if qd is None:
-        R, p, T = exp_and_tangent_many(Omega)
+        R, p, T = (exp_and_tangent_many if many else jax.vmap(exp_and_tangent))(Omega)
         return Steps(R, p, T, xi1, xi2)
     xid = jnp.einsum("szan,n->sza", st.Phi_z, qd)
     xid1, xid2 = xid[:, 0], xid[:, 1]
@@ -113,11 +116,11 @@ def steps(data: LinkageData, q, qd=None, st=None) -> Steps:
     return Steps(R, p, T, xi1, xi2, Td, Od, Odd)
 
 
-def _steps6(st, xi, qd) -> Steps:
+def _steps6(st, xi, qd, many: bool = True) -> Steps:
     """:func:`steps` for 6th-order steps, from the strains ``xi`` at the nodes."""
     Omega = magnus6(xi, st.h)
     if qd is None:
-        R, p, T = exp_and_tangent_many(Omega)
+        R, p, T = (exp_and_tangent_many if many else jax.vmap(exp_and_tangent))(Omega)
         return Steps(R, p, T, None, None, xi=xi)
     xid = jnp.einsum("szan,n->sza", st.Phi_z, qd)
 
@@ -521,11 +524,11 @@ def to_step_end_wrench(R, p, W):
     return jnp.einsum("...ba,...kb->...ka", R, out).reshape(W.shape)
 
 
-def leaf_steps(data: LinkageData, q, qd=None) -> Steps | None:
+def leaf_steps(data: LinkageData, q, qd=None, many: bool = True) -> Steps | None:
     """The leaves' own steps (None without leaves): see :func:`steps`."""
     if not data.leaf_points:
         return None
-    return steps(data, q, qd, st=data.leaf_steps)
+    return steps(data, q, qd, st=data.leaf_steps, many=many)
 
 
 def leaf_poses(lay: ChainLayout, g_core, kl: Steps | None) -> Array | None:
@@ -656,7 +659,7 @@ def point_rates(data: LinkageData, q, qd) -> PointRates:
     costs its step, its pose and its twist.
     """
     g, J, (eta, etadot), (_, _, lay) = _tree_pass(data, q, None, qd, core_only=True)
-    kl = leaf_steps(data, q)
+    kl = leaf_steps(data, q, many=False)  # in dynamics: derivatives of one tangent
     if kl is None:
         return PointRates(g, eta, J, etadot, None)
     Od = step_rates(data.leaf_steps, kl, qd)
