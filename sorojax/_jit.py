@@ -317,8 +317,8 @@ def jit(fun: Callable, *, tiered: bool = True, long_run: bool = False) -> Callab
     At top level: with :func:`compiler_options` and in the tiers of
     :func:`compile_mode` (``tiered=False``: at XLA's default level in the tiered
     mode, for programs whose first call runs long, e.g. a whole simulation;
-    ``long_run``: with ``compiler_options(long_run=True)`` at the default level, for
-    programs that run long, as a simulation's integration does). Inside
+    ``long_run``: with ``compiler_options(long_run=True)``, for programs that run
+    many times; a simulation's integration takes both). Inside
     another trace (a ``jit``, ``grad``, ``vmap``) it is the plain
     ``eqx.filter_jit(fun)``: JAX takes compiler options on top-level jits only. The
     options are probed on the first top-level call (not at import, which must not

@@ -107,9 +107,8 @@ def steps(data: LinkageData, q, qd=None, st=None, many: bool = True) -> Steps:
         R, p, T = (exp_and_tangent_many if many else jax.vmap(exp_and_tangent))(Omega)
         return Steps(R, p, T, xi1, xi2)
     xid = jnp.einsum("szan,n->sza", st.Phi_z, qd)
-    xid1, xid2 = xid[:, 0], xid[:, 1]
-    Od = 0.5 * h * (xid1 + xid2) + c * (_ad_apply(xi1, xid2) - _ad_apply(xi2, xid1))
-    Odd = 2.0 * c * _ad_apply(xid1, xid2)
+    Od = _omega_rate4(st, xi1, xi2, xid)
+    Odd = 2.0 * c * _ad_apply(xid[:, 0], xid[:, 1])
     (R, p, T), (_, _, Td) = jax.vmap(
         lambda O, dO: jax.jvp(exp_and_tangent, (O,), (dO,))
     )(Omega, Od)
@@ -159,9 +158,18 @@ def step_rates(st, k: Steps, qd) -> Array:
     xid = jnp.einsum("szan,n->sza", st.Phi_z, qd)
     if st.order == 6:
         return magnus6_apply(k.xi, st.h, xid[..., None, :])[..., 0, :]
+    return _omega_rate4(st, k.xi1, k.xi2, xid)
+
+
+def _omega_rate4(st, xi1, xi2, xid) -> Array:
+    """``dOmega`` of 4th-order steps along the node strain rates ``xid``.
+
+    ``h/2 (xid_1 + xid_2) + c (ad(xi_1) xid_2 - ad(xi_2) xid_1)``, ``xid`` of shape
+    ``(n, 2, 6)``, by cross products.
+    """
     xid1, xid2 = xid[:, 0], xid[:, 1]
     h, c = st.h[:, None], st.c[:, None]
-    a12, a21 = _ad_apply_many([(k.xi1, xid2), (k.xi2, xid1)])
+    a12, a21 = _ad_apply_many([(xi1, xid2), (xi2, xid1)])
     return 0.5 * h * (xid1 + xid2) + c * (a12 - a21)
 
 
@@ -374,14 +382,15 @@ class ChainTerms(NamedTuple):
     """Per-chain quantities relative to each chain's first point (padded).
 
     ``RG, pG``: poses of the points relative to the first; ``Ginv``: their
-    Ad^-1; ``relJ = Ad(G_a)^-1 sum_{b<a} Ad(G_b) T_b dOmega_b V``; with velocities
+    Ad^-1 (None for poses only: the backward wrench sweep uses R and p);
+    ``relJ = Ad(G_a)^-1 sum_{b<a} Ad(G_b) T_b dOmega_b V``; with velocities
     ``rel_eta`` (the twist of point a relative to the first, in its own frame) and
     ``rel_etadot`` (its velocity-product rate), see :func:`chain_terms`.
     """
 
     RG: Array
     pG: Array
-    Ginv: Array
+    Ginv: Array | None
     relJ: Array | None
     rel_eta: Array | None = None
     rel_etadot: Array | None = None
@@ -427,9 +436,9 @@ def chain_terms(
     # 21% faster there.
     pose_only = dOmegaV is None and k.Od is None
     RG, pG = _prefix_poses(R, p, sequential=pose_only)
-    Ginv = _Ad_inv(RG, pG)
     if pose_only:
-        return ChainTerms(RG, pG, Ginv, None)
+        return ChainTerms(RG, pG, None, None)
+    Ginv = _Ad_inv(RG, pG)
     AdG = _Ad(RG[:, :-1], pG[:, :-1])
     extra = 3 * n_links + 1
     T = _gather(k.T, lay.idx_rate, eye6, extra)
