@@ -196,6 +196,27 @@ class ContactState(eqx.Module):
 
 
 # ------------------------------------------------------------------------- kernels
+# Rotations of many small vectors as products and sums rather than einsums: XLA
+# fuses them with the elementwise work around them, where each einsum would be a
+# matrix-product kernel of its own.
+def _rotate(R, v):
+    """``R v`` for rotations ``R`` (..., 3, 3) and vectors ``v`` (..., 3)."""
+    return (
+        R[..., 0] * v[..., 0, None]
+        + R[..., 1] * v[..., 1, None]
+        + R[..., 2] * v[..., 2, None]
+    )
+
+
+def _rotate_back(R, v):
+    """``R^T v`` for rotations ``R`` (..., 3, 3) and vectors ``v`` (..., 3)."""
+    return (
+        R[..., 0, :] * v[..., 0, None]
+        + R[..., 1, :] * v[..., 1, None]
+        + R[..., 2, :] * v[..., 2, None]
+    )
+
+
 def _law_forces(law, d, n, v_rel, weight, friction: bool, axis=None):
     """Force on the robot (world) from penetration, normal and relative velocity.
 
@@ -225,8 +246,8 @@ def _law_forces(law, d, n, v_rel, weight, friction: bool, axis=None):
 
 def _point_wrenches(R, p, x_c, f):
     """Body wrenches at points (R, p) of forces ``f`` at ``x_c`` (world)."""
-    a_b = jnp.einsum("nji,nj->ni", R, x_c - p)
-    f_b = jnp.einsum("nji,nj->ni", R, f)
+    a_b = _rotate_back(R, x_c - p)
+    f_b = _rotate_back(R, f)
     return jnp.concatenate([jnp.cross(a_b, f_b), f_b], axis=-1)
 
 
@@ -234,13 +255,13 @@ def _world_points(g, eta, samples: Samples):
     """Sample centres, their rotation, angular and linear velocities (world)."""
     R = g[samples.point, :3, :3]
     p = g[samples.point, :3, 3]
-    x = p + jnp.einsum("nij,nj->ni", R, samples.offset)
+    x = p + _rotate(R, samples.offset)
     if eta is None:
         z = jnp.zeros_like(x)
         return R, p, x, z, z
     w_b = eta[samples.point, :3]
     v_b = eta[samples.point, 3:] + jnp.cross(w_b, samples.offset)
-    return R, p, x, jnp.einsum("nij,nj->ni", R, w_b), jnp.einsum("nij,nj->ni", R, v_b)
+    return R, p, x, _rotate(R, w_b), _rotate(R, v_b)
 
 
 def _against_obstacle(ob, t, x, w, v, radius):
@@ -252,30 +273,30 @@ def _against_obstacle(ob, t, x, w, v, radius):
     """
     G, Gd = ob.frame(t)
     RG, pG = G[:3, :3], G[:3, 3]
-    xl = (x - pG[None]) @ RG
+    RG, pG, Gd = RG[None], pG[None], Gd[None]  # one frame for every sphere
+    xl = _rotate_back(RG, x - pG)
     phi, grad = jax.vmap(jax.value_and_grad(ob.distance))(xl)
-    n = grad @ RG.T
+    n = _rotate(RG, grad)
     n = n / jnp.maximum(_safe_norm(n), 1e-12)[:, None]
     x_c = x - radius[:, None] * n
-    v_obs = ((x_c - pG[None]) @ RG) @ Gd[:3, :3].T + Gd[None, :3, 3]
+    v_obs = _rotate(Gd[:, :3, :3], _rotate_back(RG, x_c - pG)) + Gd[:, :3, 3]
     return n, radius - phi, x_c, v + jnp.cross(w, x_c - x) - v_obs
 
 
 def _obstacle_terms(contact: Contact, samples: Samples, g, eta, t, friction: bool):
-    """Per obstacle: (wrench rows, report rows) of every sample."""
+    """Per obstacle: loads (see :func:`_contact`) and report rows of every sample."""
     R, p, x, w, v = _world_points(g, eta, samples)
-    W = jnp.zeros((g.shape[0], 6), g.dtype)
-    rows = []
+    loads, rows = [], []
     for k, ob in enumerate(contact.obstacles):
         law = contact.obstacle_law(k)
         n, d, x_c, v_rel = _against_obstacle(ob, t, x, w, v, samples.radius)
         f, fn, vt = _law_forces(
             law, d, n, v_rel, samples.weight, friction, axis=R[:, :, 0]
         )
-        W = W.at[samples.point].add(_point_wrenches(R, p, x_c, f))
+        loads.append((samples.point, x_c, f))
         energy = jnp.sum(samples.weight * law.potential(d))
         rows.append((x_c, n, d, fn, f, vt, energy))
-    return W, rows
+    return loads, rows
 
 
 def segment_closest(p0, p1, q0, q1):
@@ -378,6 +399,13 @@ def pair_link_b(linkage: Linkage) -> np.ndarray:
     return np.concatenate(out) if out else np.zeros(0, int)
 
 
+def _join_indices(parts):
+    """Index arrays joined: static (NumPy) where every part is, else traced."""
+    if all(isinstance(p, np.ndarray) for p in parts):
+        return np.concatenate(parts)
+    return jnp.concatenate([jnp.asarray(p) for p in parts])
+
+
 def _take(static, idx):
     """``static[idx]``: a static table at static or traced indices."""
     return static[idx] if isinstance(idx, np.ndarray) else jnp.asarray(static)[idx]
@@ -453,7 +481,6 @@ class _PairGeometry(NamedTuple):
     cA: Array  # contact points on A's and B's surfaces
     cB: Array
     v_rel: Array  # A's surface velocity relative to B's at the contact
-    frames: tuple  # (Ra, pa, Rb, pb): the samples' frames
 
 
 def _pair_geometry(g, eta, sa, ga, sb, gb, ia, ib, valid=None) -> _PairGeometry:
@@ -462,8 +489,8 @@ def _pair_geometry(g, eta, sa, ga, sb, gb, ia, ib, valid=None) -> _PairGeometry:
     ``valid``: False at the broad phase's empty rows (no share, a gap of twice the
     radii: no force).
     """
-    Ra, pa, xa, wa, va = _world_points(g, eta, sa)
-    Rb, pb, xb, wb, vb = _world_points(g, eta, sb)
+    _, _, xa, wa, va = _world_points(g, eta, sa)
+    _, _, xb, wb, vb = _world_points(g, eta, sb)
     a0, a1 = _take(ga.start, ia), _take(ga.end, ia)
     b0, b1 = _take(gb.start, ib), _take(gb.end, ib)
     s, u, s_line, u_line, parallel = jax.vmap(_segment_closest)(
@@ -493,20 +520,17 @@ def _pair_geometry(g, eta, sa, ga, sb, gb, ia, ib, valid=None) -> _PairGeometry:
     v_rel = _segment_velocity(xa, wa, va, a0, a1, cA, s) - _segment_velocity(
         xb, wb, vb, b0, b1, cB, u
     )
-    return _PairGeometry(
-        a0, a1, b0, b1, s, u, share, n, d, cA, cB, v_rel, (Ra, pa, Rb, pb)
-    )
+    return _PairGeometry(a0, a1, b0, b1, s, u, share, n, d, cA, cB, v_rel)
 
 
 def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
-    """Rod-rod contacts: (wrench rows, report rows, overflow).
+    """Rod-rod contacts: (loads, report rows, overflow) (loads: see :func:`_contact`).
 
     Each rod pair's narrow phase works on its broad phase's candidates
     (:func:`_candidates`).
     """
     law = contact.law
-    W = jnp.zeros((g.shape[0], 6), g.dtype)
-    rows = []
+    loads, rows = [], []
     overflow = jnp.zeros((), bool)
     for entry in pairs:
         sa, ga, sb, gb, _, _ = entry
@@ -515,7 +539,6 @@ def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
         k = _pair_geometry(g, eta, sa, ga, sb, gb, ia, ib, valid)
         a0, a1, b0, b1, s, u = k.a0, k.a1, k.b0, k.b1, k.s, k.u
         share, n, d, cA, cB, v_rel = k.share, k.n, k.d, k.cA, k.cB, k.v_rel
-        Ra, pa, Rb, pb = k.frames
         f, fn, vt = _law_forces(
             law,
             d,
@@ -524,17 +547,16 @@ def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
             share,
             friction and contact.friction_in_rod_pairs,
         )
-        for idx, R_, p_, c_, lam, sign, pts in (
-            (a0, Ra, pa, cA, 1 - s, 1.0, sa.point),
-            (a1, Ra, pa, cA, s, 1.0, sa.point),
-            (b0, Rb, pb, cB, 1 - u, -1.0, sb.point),
-            (b1, Rb, pb, cB, u, -1.0, sb.point),
+        for idx, c_, lam, pts in (
+            (a0, cA, 1 - s, sa.point),
+            (a1, cA, s, sa.point),
+            (b0, cB, -(1 - u), sb.point),
+            (b1, cB, -u, sb.point),
         ):
-            Wk = _point_wrenches(R_[idx], p_[idx], c_, sign * lam[:, None] * f)
-            W = W.at[_take(pts, idx)].add(Wk)
+            loads.append((_take(pts, idx), c_, lam[:, None] * f))
         energy = jnp.sum(share * law.potential(d))
         rows.append((cA, n, d, fn, f, vt, energy, np.full(d.shape[0], sa.link[0])))
-    return W, rows, overflow
+    return loads, rows, overflow
 
 
 def _bore_radii(linkage: Linkage, tube: int) -> Array:
@@ -629,23 +651,18 @@ def _sphere_rod_terms(linkage: Linkage, g, eta, friction: bool):
     rounded.
     """
     law = linkage.contact.law
-    W = jnp.zeros((g.shape[0], 6), g.dtype)
-    rows = []
+    loads, rows = [], []
     for rod, body, inside in sphere_rod_pairs(linkage):
         k = _sphere_rod(linkage, g, eta, rod, body, inside)
         f, fn, slip = _law_forces(law, k.d, k.n_body, k.v_rel, k.share, friction)
-        Rb, pb = g[k.sb.point, :3, :3], g[k.sb.point, :3, 3]
-        Rt, pt = g[k.st.point, :3, :3], g[k.st.point, :3, 3]
-        W = W.at[k.sb.point[k.ib]].add(_point_wrenches(Rb[k.ib], pb[k.ib], k.c_body, f))
+        loads.append((k.sb.point[k.ib], k.c_body, f))
         for idx, lam in ((k.a0, 1 - k.s), (k.a1, k.s)):
-            W = W.at[k.st.point[idx]].add(
-                _point_wrenches(Rt[idx], pt[idx], k.c_wall, -lam[:, None] * f)
-            )
+            loads.append((k.st.point[idx], k.c_wall, -lam[:, None] * f))
         energy = jnp.sum(k.share * law.potential(k.d))
         # past a segment's span (share 0) the row reports the wall's radius as a gap
         gap = jnp.where(k.share > 0, k.d, -k.r_w)
         rows.append((k.c_body, k.n_body, gap, fn, f, slip, energy, k.sb.link[k.ib]))
-    return W, rows
+    return loads, rows
 
 
 def contact_wrenches(linkage: Linkage, t, g, eta=None) -> Array:
@@ -683,35 +700,46 @@ def smallest_radius(linkage: Linkage) -> Array:
 def _contact(linkage: Linkage, t, g, eta):
     """``(W, rows, labels, overflow)``: wrenches, report rows and their labels.
 
-    Where the broad phase overflowed the wrenches are NaN: a solver stops there
-    (the report says why) rather than going on without some contacts.
+    Each kind of contact gives its loads, ``(points, x, f)``: forces ``f`` (world)
+    at world points ``x`` carried by significant points ``points``; they become
+    body wrenches at those points in one batch. Where the broad phase overflowed
+    the wrenches are NaN: a solver stops there (the report says why) rather than
+    going on without some contacts.
     """
     contact = linkage.contact
     assert contact is not None
     friction = eta is not None
-    W = jnp.zeros((g.shape[0], 6), g.dtype)
-    rows, labels = [], []
+    loads, rows, labels = [], [], []
     overflow = jnp.zeros((), bool)
     if contact.obstacles:
         samples = obstacle_samples(linkage)
-        Wo, ro = _obstacle_terms(contact, samples, g, eta, t, friction)
-        W = W + Wo
+        lo, ro = _obstacle_terms(contact, samples, g, eta, t, friction)
+        loads += lo
         for k, r in enumerate(ro):
             rows.append(r)
             labels.append((samples.link, np.full(len(samples.link), k)))
     pairs = _pair_list(linkage)
     if pairs:
-        Wp, rp, overflow = _pair_terms(contact, pairs, g, eta, friction)
-        W = jnp.where(overflow, jnp.nan, W + Wp)
+        lp, rp, overflow = _pair_terms(contact, pairs, g, eta, friction)
+        loads += lp
         for r in rp:
             rows.append(r[:7])
             labels.append((np.asarray(r[7]), np.full(len(r[7]), -1)))
     if sphere_rod_pairs(linkage):
-        Wi, ri = _sphere_rod_terms(linkage, g, eta, friction)
-        W = W + Wi
+        li, ri = _sphere_rod_terms(linkage, g, eta, friction)
+        loads += li
         for r in ri:
             rows.append(r[:7])
             labels.append((np.asarray(r[7]), np.full(len(r[7]), -1)))
+    W = jnp.zeros((g.shape[0], 6), g.dtype)
+    if loads:  # every contact's forces as wrenches at their points: one scatter
+        points = _join_indices([pt for pt, _, _ in loads])
+        x = jnp.concatenate([x for _, x, _ in loads])
+        f = jnp.concatenate([f for _, _, f in loads])
+        R, p = g[points, :3, :3], g[points, :3, 3]
+        W = W.at[points].add(_point_wrenches(R, p, x, f))
+    if pairs:
+        W = jnp.where(overflow, jnp.nan, W)
     return W, rows, labels, overflow
 
 
@@ -817,14 +845,18 @@ def _point_jacobian(g, J, point, x_c):
     """
     R, p = g[point, :3, :3], g[point, :3, 3]
     Jp = J[point]
-    a_b = jnp.einsum("nji,nj->ni", R, x_c - p)
-    return jnp.einsum(
-        "nij,njk->nik", R, Jp[:, 3:] - jnp.cross(a_b[:, :, None], Jp[:, :3], axis=1)
-    )
+    a_b = _rotate_back(R, x_c - p)
+    Jv = Jp[:, 3:] - jnp.cross(a_b[:, :, None], Jp[:, :3], axis=1)
+    return jnp.sum(R[:, :, :, None] * Jv[:, None, :, :], axis=2)
 
 
-def _tangent_terms(law, weight, d, n, v_rel, Jc, friction: bool = True):
-    """``(K, D)`` contributions of contacts with relative-velocity Jacobians ``Jc``."""
+def _tangent_slopes(law, weight, d, n, v_rel, friction: bool = True):
+    """Per contact: normal stiffness ``k_n``, normal and tangential damping slopes.
+
+    ``(k_n, c_n - c_t, c_t)``: the contact's stiffness and damping are
+    ``k_n n n^T`` and ``(c_n - c_t) n n^T + c_t I`` (world), with ``c_t = mu f_n /
+    sqrt(|v_t|^2 + v_s^2)`` the friction's viscous slope.
+    """
     kn = weight * jax.vmap(jax.grad(law.normal_force))(d)
     cn = weight * law.damping * law.ramp(d)
     vn = jnp.sum(v_rel * n, axis=-1)
@@ -837,12 +869,7 @@ def _tangent_terms(law, weight, d, n, v_rel, Jc, friction: bool = True):
     )
     if not friction:
         ct = jnp.zeros_like(ct)
-    Jn = jnp.einsum("ni,nik->nk", n, Jc)  # normal rows
-    K = jnp.einsum("n,ni,nj->ij", kn, Jn, Jn)
-    D = jnp.einsum("n,ni,nj->ij", cn - ct, Jn, Jn) + jnp.einsum(
-        "n,nik,nil->kl", ct, Jc, Jc
-    )
-    return K, D
+    return kn, cn - ct, ct
 
 
 def contact_tangent(linkage: Linkage, t, g, J, eta) -> tuple[Array, Array]:
@@ -858,46 +885,74 @@ def contact_tangent(linkage: Linkage, t, g, J, eta) -> tuple[Array, Array]:
     against rods (tubes, a rigid shape in ``rod_pairs``). The geometric
     (curvature) terms are left out: W only needs the contacts' fast scales, its
     order conditions hold for any W.
+
+    Every contact of every kind is one row of one batch: the points that carry
+    the contacts (one per obstacle contact, three per body against a rod, four
+    per rod pair), their velocity Jacobians in one gather and product, and the
+    sums over the rows as three matrix products.
     """
     contact = linkage.contact
     assert contact is not None
-    n_dof = J.shape[-1]
-    Kc = jnp.zeros((n_dof, n_dof), J.dtype)
-    Dc = jnp.zeros((n_dof, n_dof), J.dtype)
     law = contact.law
+    # per kind: (the rows' slopes, their carrying points (point index, weight, x))
+    slopes, carriers = [], []
     if contact.obstacles:
         samples = obstacle_samples(linkage)
         _, _, x, w, v = _world_points(g, eta, samples)
         for k, ob in enumerate(contact.obstacles):
             n, d, x_c, v_rel = _against_obstacle(ob, t, x, w, v, samples.radius)
-            Jc = _point_jacobian(g, J, samples.point, x_c)
-            K, D = _tangent_terms(
-                contact.obstacle_law(k), samples.weight, d, n, v_rel, Jc
+            slopes.append(
+                (
+                    n,
+                    *_tangent_slopes(
+                        contact.obstacle_law(k), samples.weight, d, n, v_rel
+                    ),
+                )
             )
-            Kc, Dc = Kc + K, Dc + D
+            carriers.append([(samples.point, None, x_c)])
     for entry in _pair_list(linkage):
         sa, ga, sb, gb, _, _ = entry
         ia, ib, valid, _ = _candidates(contact, g, entry)
         k = _pair_geometry(g, eta, sa, ga, sb, gb, ia, ib, valid)
-        Jc = 0.0
-        for pts, idx, c, lam in (
-            (sa.point, k.a0, k.cA, 1 - k.s),
-            (sa.point, k.a1, k.cA, k.s),
-            (sb.point, k.b0, k.cB, -(1 - k.u)),
-            (sb.point, k.b1, k.cB, -k.u),
-        ):
-            Jc = Jc + lam[:, None, None] * _point_jacobian(g, J, _take(pts, idx), c)
-        K, D = _tangent_terms(
-            law, k.share, k.d, k.n, k.v_rel, Jc, contact.friction_in_rod_pairs
+        friction = contact.friction_in_rod_pairs
+        slopes.append(
+            (k.n, *_tangent_slopes(law, k.share, k.d, k.n, k.v_rel, friction))
         )
-        Kc, Dc = Kc + K, Dc + D
+        carriers.append([
+            (_take(sa.point, k.a0), 1 - k.s, k.cA),
+            (_take(sa.point, k.a1), k.s, k.cA),
+            (_take(sb.point, k.b0), -(1 - k.u), k.cB),
+            (_take(sb.point, k.b1), -k.u, k.cB),
+        ])  # fmt: skip
     for rod, body, inside in sphere_rod_pairs(linkage):
         k = _sphere_rod(linkage, g, eta, rod, body, inside)
-        Jc = _point_jacobian(g, J, k.sb.point[k.ib], k.c_body)
-        for idx, lam in ((k.a0, 1 - k.s), (k.a1, k.s)):
-            Jc = Jc - lam[:, None, None] * _point_jacobian(
-                g, J, k.st.point[idx], k.c_wall
-            )
-        K, D = _tangent_terms(law, k.share, k.d, k.n_body, k.v_rel, Jc)
-        Kc, Dc = Kc + K, Dc + D
-    return Kc, Dc
+        slopes.append(
+            (k.n_body, *_tangent_slopes(law, k.share, k.d, k.n_body, k.v_rel))
+        )
+        carriers.append([
+            (k.sb.point[k.ib], None, k.c_body),
+            (k.st.point[k.a0], -(1 - k.s), k.c_wall),
+            (k.st.point[k.a1], -k.s, k.c_wall),
+        ])  # fmt: skip
+    n_dof = J.shape[-1]
+    if not slopes:
+        z = jnp.zeros((n_dof, n_dof), J.dtype)
+        return z, z
+    flat = [c for kind in carriers for c in kind]
+    points = _join_indices([c[0] for c in flat])
+    Jp = _point_jacobian(g, J, points, jnp.concatenate([c[2] for c in flat]))
+    lam = jnp.concatenate([
+        jnp.ones(c[2].shape[0], J.dtype) if c[1] is None else c[1] for c in flat
+    ])  # fmt: skip
+    Jp = lam[:, None, None] * Jp
+    rows, at = [], 0  # each contact's Jacobian: the sum of its carriers'
+    for kind in carriers:
+        m = kind[0][2].shape[0]
+        rows.append(sum(Jp[at + i * m : at + (i + 1) * m] for i in range(len(kind))))
+        at += m * len(kind)
+    Jc = jnp.concatenate(rows)
+    n, kn, cnt, ct = (jnp.concatenate(x) for x in zip(*slopes, strict=True))
+    Jn = jnp.sum(n[:, :, None] * Jc, axis=1)  # normal rows
+    K = (kn[:, None] * Jn).T @ Jn
+    D = (cnt[:, None] * Jn).T @ Jn + jnp.einsum("n,nik,nil->kl", ct, Jc, Jc)
+    return K, D
