@@ -20,7 +20,11 @@ from sorojax.dynamics._wrench_recursion import (
     force_from_wrenches,
     poses_with_records,
 )
-from sorojax.kinematics._recursion import kinematics_and_rates, point_rates
+from sorojax.kinematics._recursion import (
+    kinematics_and_rates,
+    point_jacobians,
+    point_rates,
+)
 from sorojax.model._precompute import precompute
 
 
@@ -84,6 +88,10 @@ def test_leaf_twists_jacobians_and_rates_are_the_derivatives_of_the_poses(rods, 
     pr = point_rates(data, q, qd)
     np.testing.assert_allclose(pr.g, g, atol=0.0, err_msg="point_rates poses")
     np.testing.assert_allclose(pr.eta, eta, atol=1e-13, err_msg="point_rates twists")
+    # every point's Jacobian from the chain points' (the contacts' tangent in W)
+    np.testing.assert_allclose(
+        point_jacobians(data, pr), J, atol=1e-13, err_msg="point_jacobians"
+    )
 
 
 def test_leaves_wrenches_map_as_their_jacobians_transpose(rods, state):

@@ -23,7 +23,6 @@ from .._jit import jit
 from ..kinematics._api import Kinematics, _as_q
 from ..kinematics._recursion import (
     PointRates,
-    full_point_rates,
     jacobians_dot,
     kinematics_and_rates,
     point_rates,
@@ -221,14 +220,12 @@ def constrained_dynamics(
     u_fn: InputFunction,
     generalized_force: GeneralizedForce | None = None,
     return_rates: bool = False,
-    full: bool = False,
 ):
     """The saddle-point solve with prescribed coordinates and closed loops.
 
     Returns the :class:`ConstrainedState`, and with ``return_rates`` also the
     kinematics it used (:class:`~sorojax.kinematics._recursion.PointRates`, at the
-    prescribed values), every point's Jacobian in them with ``full`` (for the
-    contacts' tangent).
+    prescribed values).
 
     ``M qdd = f + G^T mu`` with constraint rows ``G qdd = b``: one-hot rows
     ``qdd_p = u''(t)`` for prescribed coordinates (their values and velocities are
@@ -247,7 +244,7 @@ def constrained_dynamics(
         q, qd = q.at[qi].set(qp), qd.at[qi].set(qdp)
         rows.append(jnp.eye(n, dtype=q.dtype)[qi])
         rhs.append(qddp)
-    rates = (full_point_rates if full else point_rates)(data, q, qd)
+    rates = point_rates(data, q, qd)
     if linkage.closed_loops:
         e, A, bias = _loop_terms(linkage, data, rates)
         Tb = linkage.baumgarte_time

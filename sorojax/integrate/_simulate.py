@@ -45,7 +45,7 @@ from ..dynamics._eom import (
     spd_solve,
 )
 from ..kinematics._api import _as_q
-from ..kinematics._recursion import full_point_rates, point_rates
+from ..kinematics._recursion import point_jacobians, point_rates
 from ..model._checks import check_finite, check_tolerances, is_concrete
 from ..model._link import SoftLink
 from ..model._linkage import Linkage
@@ -278,18 +278,18 @@ def _rates(linkage: Linkage, data, t, y, u_fn, u_const, generalized_force):
     q, qd = y[:n], y[n:]
     tangent = linkage.contact is not None and linkage.contact.tangent_in_w
     if not _needs_inputs(linkage):
-        # with the contacts' tangent every point's Jacobian (one pass serves both)
-        rates = (full_point_rates if tangent else point_rates)(data, q, qd)
+        rates = point_rates(data, q, qd)
         M, f = mass_and_force(linkage, data, t, q, qd, generalized_force, rates=rates)
         ydot, st = jnp.concatenate([qd, spd_solve(M, f)]), None
     else:
         st, rates = constrained_dynamics(
             linkage, data, t, q, qd, _input_function(u_fn, u_const), generalized_force,
-            return_rates=True, full=tangent,
+            return_rates=True,
         )  # fmt: skip
         ydot, M = jnp.concatenate([st.qd, st.qdd]), st.M
     if tangent:  # the contacts' stiffness and damping join W (ROS34PW2)
-        Kc, Dc = contact_tangent(linkage, t, rates.g, rates.J, rates.eta)
+        J = point_jacobians(data, rates)  # the leaves' too: contacts sit on them
+        Kc, Dc = contact_tangent(linkage, t, rates.g, J, rates.eta)
         return ydot, (M, data.K + Kc, data.D + Dc), st
     return ydot, (M, data.K, data.D), st
 

@@ -633,8 +633,8 @@ class PointRates(NamedTuple):
     (``chain_layout(data).core``: leaves carry no mass, and their wrenches reach the
     coordinates through their chain points, :func:`~sorojax.dynamics.
     _wrench_recursion.leaf_wrenches`); ``leaves``: the leaves' steps, None when
-    ``J`` and ``etadot`` have a row per point (no leaves, or
-    :func:`full_point_rates`).
+    ``J`` and ``etadot`` have a row per point (no leaves; :func:`point_jacobians`
+    gives every point's ``J``).
     """
 
     g: Array
@@ -651,14 +651,20 @@ def rows_of(data: LinkageData, pr: PointRates) -> np.ndarray:
     return chain_layout(data).row
 
 
-def full_point_rates(data: LinkageData, q, qd) -> PointRates:
-    """:class:`PointRates` with every point's Jacobian and rate, leaves included.
+def point_jacobians(data: LinkageData, pr: PointRates) -> Array:
+    """Every point's Jacobian ``(n_points, 6, n_dof)``, leaves included.
 
-    For a caller that needs the leaves' Jacobians too (the contacts' tangent in
-    ROS34PW2's W): one pass serves both.
+    From :func:`point_rates`' (chain points only): a leaf's is its chain point's
+    carried through its own step, ``J_l = Ad(G_l)^-1 (J_c + T_l dOmega_l)``, all
+    leaves in one batch. For a caller that needs the leaves' Jacobians (the
+    contacts' tangent in ROS34PW2's W) but not their rates.
     """
-    g, J, eta, etadot = kinematics_and_rates(data, q, qd)
-    return PointRates(g, eta, J, etadot, None)
+    if pr.leaves is None:
+        return pr.J
+    lay = chain_layout(data)
+    kl = pr.leaves
+    rel = kl.T @ step_jacobians(data, kl, None, st=data.leaf_steps)
+    return with_leaves(lay, pr.J, _Ad_inv(kl.R, kl.p) @ (pr.J[lay.leaf_row] + rel))
 
 
 def point_rates(data: LinkageData, q, qd) -> PointRates:
