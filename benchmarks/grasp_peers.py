@@ -41,6 +41,10 @@ between 0.4 and 0.8 s.
   - timed both as a Python loop of ``mj_step`` (controls written each step) and
     as ``mujoco.rollout`` (the same controls precomputed, stepped in C++).
 
+sorojax's own step is swept the same way (``--sj-dts``, default 8, 4 and 2 ms):
+the largest whose lift and slip end within 1 mm of its adaptive reference is timed
+too (``sorojax_largest_step``), beside the example's default 2 ms step.
+
 Timing: the CPU is shared, so the warm runs are interleaved (``interleaved``):
 each round times MuJoCo 5 + 5 times, one warm sorojax run, MuJoCo again; the
 ratio of each round and their median are reported beside the medians and minima.
@@ -349,6 +353,38 @@ def sorojax_part(T, t1, solver="rosenbrock_euler", dt=2e-3, rtol=1e-3, atol=1e-6
     return res, lambda: ex.grasp(lk, T, t1, **kw)
 
 
+def step_sweep(T, t1, solver, dts, ref):
+    """sorojax's constant steps ``dts``: the largest whose ball ends within 1 mm.
+
+    MuJoCo's step is chosen the same way (:func:`mujoco_part`), against its own
+    finest; sorojax's against its adaptive reference ``ref`` (ROS34PW2 at rtol
+    1e-4). Returns that step's row with a warm-run closure (``run``), and the
+    sweep; None when no step is within 1 mm.
+    """
+    sweep, best = [], None
+    for dt in sorted(dts, reverse=True):
+        try:
+            row, run = sorojax_part(T, t1, solver, dt)
+        except RuntimeError as err:  # e.g. RESULTS.unstable_step
+            sweep.append(dict(dt=dt, within_1mm=False, failed=str(err)[:200]))
+            print(f"sorojax dt {dt:.1e}: failed ({str(err)[:80]})")
+            continue
+        ph = row["physics"]
+        dev = {k: ph[k] - ref["physics"][k] for k in ("lift_mm", "slip_mm")}
+        finite = bool(np.isfinite(ph["lift_mm"]) and np.isfinite(ph["slip_mm"]))
+        within = finite and all(abs(v) < 1.0 for v in dev.values())
+        sweep.append(dict(dt=dt, steps=row["steps"], lift_mm=ph["lift_mm"],
+                          slip_mm=ph["slip_mm"], deviation_mm=dev,
+                          within_1mm=within))  # fmt: skip
+        print(f"sorojax dt {dt:.1e}: lift {ph['lift_mm']:.2f} mm, slip "
+              f"{ph['slip_mm']:.2f} mm" + ("" if within else " (not within 1 mm)"))  # fmt: skip
+        if within and best is None:
+            best = dict(sweep[-1], run=run)
+    if best is None:
+        return None
+    return best | dict(sweep=sweep)
+
+
 def batch_part(p, m, T_grid, t1, dt, repeats):
     """``len(T_grid)`` grasps at once: one jit of a ``vmap`` of the constant-step
     grasp (lockstep: every case takes the same steps) against ``mujoco.rollout`` of
@@ -468,6 +504,9 @@ def main(argv=None):
     ap.add_argument("--impratio", type=float, default=10.0)
     ap.add_argument("--dts", type=float, nargs="+",
                     default=[4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4, 1e-4])  # fmt: skip
+    ap.add_argument("--sj-dts", type=float, nargs="+", default=[8e-3, 4e-3, 2e-3],
+                    help="sorojax's constant steps swept for the largest within "
+                    "1 mm of its adaptive reference (0 values: no sweep)")  # fmt: skip
     a = ap.parse_args(argv)
     # MuJoCo's warnings (the sweep's diverging steps) printed, not logged to a file
     mujoco.set_mju_user_warning(lambda msg: print(f"MuJoCo: {msg}"))
@@ -481,6 +520,9 @@ def main(argv=None):
     sj_["deviation_from_reference_mm"] = {
         k: sj_["physics"][k] - ref["physics"][k] for k in ("lift_mm", "slip_mm")
     }
+    largest = None
+    if dt is not None and a.sj_dts:
+        largest = step_sweep(a.tension, a.t1, a.solver, a.sj_dts, ref)
     tm = interleaved(run_sj, m, U, a.repeats)
     sj_ |= dict(
         warm_median_s=tm["sorojax_warm_median_s"], warm_min_s=tm["sorojax_warm_min_s"],
@@ -493,6 +535,16 @@ def main(argv=None):
         loop_median_s=tm["mujoco_loop_median_s"], loop_min_s=tm["mujoco_loop_min_s"],
         rollout_per_step_ms=1e3 * tm["mujoco_rollout_median_s"] / mj["steps"],
     )  # fmt: skip
+    if largest is not None:  # the largest step within 1 mm, timed the same way
+        run_big = largest.pop("run")
+        tb = interleaved(run_big, m, U, a.repeats)
+        largest |= dict(
+            warm_median_s=tb["sorojax_warm_median_s"],
+            warm_per_step_ms=1e3 * tb["sorojax_warm_median_s"] / largest["steps"],
+            mujoco_rollout_median_s=tb["mujoco_rollout_median_s"],
+            round_ratios=tb["round_ratios"],
+            ratio_median_of_rounds=tb["ratio_median_of_rounds"],
+        )  # fmt: skip
     batch = None
     if a.batch:
         batch = batch_part(p, m, np.linspace(3.0, 5.0, a.batch), a.t1, dt or 2e-3,
@@ -501,7 +553,7 @@ def main(argv=None):
         what=f"examples/grasp.py at T = {a.tension:g} N for {a.t1:g} s: sorojax "
         "against MuJoCo",
         t1=a.t1, tension=a.tension, scene=p, sorojax=sj_, sorojax_reference=ref,
-        mujoco=mj, timing=tm, batch=batch,
+        sorojax_largest_step=largest, mujoco=mj, timing=tm, batch=batch,
         environment=env | {"load_average_at_end": list(os.getloadavg())},
     )  # fmt: skip
     OUT.parent.mkdir(parents=True, exist_ok=True)
@@ -547,6 +599,15 @@ def _table(res):
         f"(median of the rounds' ratios; {min(tm['round_ratios']):.2f}-"
         f"{max(tm['round_ratios']):.2f}x); the reference's row: its first call"
     )
+    big = res.get("sorojax_largest_step")
+    if big:
+        print(
+            f"sorojax at its largest step within 1 mm of its reference "
+            f"({big['dt']:g} s, {big['steps']} steps; lift {big['lift_mm']:.2f}, "
+            f"slip {big['slip_mm']:.2f} mm): {big['warm_median_s']:.3f} s, "
+            f"{big['ratio_median_of_rounds']:.2f}x MuJoCo's rollout "
+            f"({min(big['round_ratios']):.2f}-{max(big['round_ratios']):.2f}x)"
+        )
     b = res["batch"]
     if b:
         print(f"{b['cases']} grasps: sorojax vmap {b['sorojax_cases_per_s']:.1f} "

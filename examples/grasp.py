@@ -107,9 +107,14 @@ def grasp(lk, tension, t1, n_save=61, solver="rosenbrock_euler", dt=2e-3,
     steps = dict(rtol=rtol, atol=atol) if dt is None else dict(dt0=dt)
     tr = sj.simulate(lk, t1, u=u, solver=solver, n_save=n_save,
                      max_steps=200_000, **steps)  # fmt: skip
-    g = np.asarray(jax.vmap(lambda q: sj.forward_kinematics(lk, q))(tr.q))
-    ball = g[:, lk.layout.links[3].cm_point, 2, 3]
-    return tr, ball, np.asarray(tr.q[:, 0])
+    return tr, np.asarray(ball_heights(lk, tr.q)), np.asarray(tr.q[:, 0])
+
+
+@sj.jit
+def ball_heights(lk, q):
+    """The ball's centre height [m] at each row of ``q`` (one compiled program)."""
+    cm = lk.layout.links[3].cm_point
+    return jax.vmap(lambda q_: sj.forward_kinematics(lk, q_)[cm, 2, 3])(q)
 
 
 def slip(lk, tension, t1, adjoint=None, throw=True, dt=5e-4):
