@@ -563,3 +563,42 @@ def test_an_obstacle_with_its_own_law_sets_the_friction():
     assert np.all(f[:, 2] > 0)
     with pytest.raises(ValueError, match="Contact.obstacle_laws"):
         sj.Contact(sj.Plane(), rough, obstacle_laws={1: slippery})
+
+
+def test_box_distance_is_exact_and_its_derivative_finite_at_every_level():
+    """The box's signed distance at points outside (to an edge, a face) and inside
+    (minus the depth under the nearest face) equals the closed form, and the
+    penetration's forward-mode derivative for spheres against a turned box equals
+    central differences (1e-7: truncation at step 1e-6), compiled at XLA's -O0 as at
+    its default level. The spheres are those of tests/test_contact_viz.py's rod
+    where, at -O0, ``jnp.max``'s derivative (an average over the entries equal to
+    the maximum) gave 0/0: XLA computed the entries in two kernels with different
+    rounding, and none equalled the maximum."""
+    from sorojax.dynamics._contact import _against_obstacle
+
+    box = sj.Box((0.02, 0.02, 0.02))
+    pts = jnp.asarray([[0.07330127, 0.06160254, -0.0105],  # outside, beside an edge
+                       [0.05, 0.01, 0.0],  # outside a face
+                       [0.005, -0.012, 0.003]])  # inside, nearest face -y  # fmt: skip
+    want = [np.hypot(0.05330127, 0.04160254), 0.03, -(0.02 - 0.012)]
+    np.testing.assert_allclose(jax.vmap(box.distance)(pts), want, rtol=1e-12)
+    c, s_ = np.cos(np.pi / 6), np.sin(np.pi / 6)
+    pose = np.array([[c, -s_, 0, 0.2], [s_, c, 0, -0.1], [0, 0, 1, 0.02], [0, 0, 0, 1]])
+    turned = sj.Box((0.02, 0.02, 0.02), pose=pose)
+    x = jnp.asarray([[0.19999999998231238, 0.0, 0.00943338404625861],
+                     [0.24999999996135924, 0.0, 0.00943474895272092],
+                     [0.2999999998445533, 0.0, 0.00943810188796205]])  # fmt: skip
+    radius = jnp.full(3, 0.01)
+
+    def depth(x):
+        z = jnp.zeros_like(x)
+        return _against_obstacle(turned, 0.0, x, z, z, radius)[1]
+
+    h, e = 1e-6, jnp.broadcast_to(jnp.asarray([1.0, -0.5, 0.25]), x.shape)
+    fd = (depth(x + h * e) - depth(x - h * e)) / (2 * h)
+    for level in (0, 2):
+        opts = {**sj.compiler_options(), "xla_backend_optimization_level": level}
+        tangent = jax.jit(
+            lambda x: jax.jvp(depth, (x,), (e,))[1], compiler_options=opts
+        )(x)
+        np.testing.assert_allclose(tangent, fd, atol=1e-7, err_msg=f"level {level}")

@@ -505,10 +505,16 @@ class Box(AbstractObstacle):
         self.name = name
 
     def distance(self, x):
-        """Exact signed distance of a box (outside: to the surface; inside: -depth)."""
+        """Exact signed distance of a box (outside: to the surface; inside: -depth).
+
+        Inside, the nearest face's ``q`` is taken by its index, not by ``jnp.max``:
+        the reduction's derivative averages over the entries equal to the maximum,
+        and where XLA computes ``q`` in two kernels with different rounding none
+        may be (0/0: a NaN tangent, seen at -O0).
+        """
         q = jnp.abs(x) - self.half_extents
         outside = _safe_norm(jnp.maximum(q, 0.0))
-        inside = jnp.minimum(jnp.max(q), 0.0)
+        inside = jnp.minimum(q[jnp.argmax(q)], 0.0)
         return outside + inside
 
 
