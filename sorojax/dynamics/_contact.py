@@ -196,11 +196,11 @@ class ContactState(eqx.Module):
 
 
 # ------------------------------------------------------------------------- kernels
-# Rotations of many small vectors as products and sums rather than einsums: XLA
+# 3 x 3 products of many small vectors as products and sums, not einsums: XLA
 # fuses them with the elementwise work around them, where each einsum would be a
 # matrix-product kernel of its own.
 def _rotate(R, v):
-    """``R v`` for rotations ``R`` (..., 3, 3) and vectors ``v`` (..., 3)."""
+    """``R v`` for 3 x 3 matrices ``R`` (..., 3, 3) and vectors ``v`` (..., 3)."""
     return (
         R[..., 0] * v[..., 0, None]
         + R[..., 1] * v[..., 1, None]
@@ -209,7 +209,7 @@ def _rotate(R, v):
 
 
 def _rotate_back(R, v):
-    """``R^T v`` for rotations ``R`` (..., 3, 3) and vectors ``v`` (..., 3)."""
+    """``R^T v`` for 3 x 3 matrices ``R`` (..., 3, 3) and vectors ``v`` (..., 3)."""
     return (
         R[..., 0, :] * v[..., 0, None]
         + R[..., 1, :] * v[..., 1, None]

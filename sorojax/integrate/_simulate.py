@@ -495,13 +495,12 @@ def _saved_inputs(linkage, ts, q, qd, u_fn, u_const, generalized_force):
     hybrid's dynamics 2.6 -> 4.1 s), where on its own it is compiled in sorojax's
     tiers (at -O0: 0.9 s; it runs once per trajectory), its save points in one
     batch (at -O0 the grasp's 61 take 28 ms, against 7.7 ms once compiled at the
-    default level). Starting that second compile at the first call instead of
-    after the tiers' budget was measured worse: over 16 grasps in a fresh process
-    the first call took 12.9 s against 11.1 s and the 16 calls 14.5 s against
-    12.7 s (the compile shares the 2-core CPU with the next calls). With every
-    program at the default level (``SOROJAX_COMPILE=full``) it stays inside. It
-    takes ``q`` and ``qd`` as the trajectory holds them (joined here, not by an
-    eager operation that would compile a program of its own).
+    default level; the tiers' second compile starts when their budget is spent,
+    and one started at the first call shares the 2-core CPU with the calls that
+    follow). With every program at the default level (``SOROJAX_COMPILE=full``)
+    it stays inside. It takes ``q`` and ``qd`` as the trajectory holds them
+    (joined here, not by an eager operation that would compile a program of its
+    own).
     """
     ys = jnp.concatenate([q, qd], axis=1)
     return _inputs_at(
