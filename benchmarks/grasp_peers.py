@@ -504,9 +504,9 @@ def main(argv=None):
     ap.add_argument("--impratio", type=float, default=10.0)
     ap.add_argument("--dts", type=float, nargs="+",
                     default=[4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4, 1e-4])  # fmt: skip
-    ap.add_argument("--sj-dts", type=float, nargs="+", default=[8e-3, 4e-3, 2e-3],
+    ap.add_argument("--sj-dts", type=float, nargs="*", default=[8e-3, 4e-3, 2e-3],
                     help="sorojax's constant steps swept for the largest within "
-                    "1 mm of its adaptive reference (0 values: no sweep)")  # fmt: skip
+                    "1 mm of its adaptive reference (no values: no sweep)")  # fmt: skip
     a = ap.parse_args(argv)
     # MuJoCo's warnings (the sweep's diverging steps) printed, not logged to a file
     mujoco.set_mju_user_warning(lambda msg: print(f"MuJoCo: {msg}"))
