@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import sorojax as sj
+from sorojax.dynamics._eom import lazy_kinematics
 from sorojax.dynamics._wrench_recursion import (
     force_from_point_rates,
     force_from_wrenches,
@@ -92,6 +93,22 @@ def test_leaf_twists_jacobians_and_rates_are_the_derivatives_of_the_poses(rods, 
     np.testing.assert_allclose(
         point_jacobians(data, pr), J, atol=1e-13, err_msg="point_jacobians"
     )
+
+
+def test_hooks_read_the_same_kinematics_from_the_dynamics_rates(rods, state):
+    # Inside the dynamics the hooks' Kinematics reuses point_rates' poses and twists
+    # and carries the Jacobians from them (so that XLA drops the fields no hook
+    # reads); it must equal the full pass's, leaves (contact samples) included.
+    _, lk = rods
+    q, qd = state
+    data = precompute(lk)
+    full = lazy_kinematics(data, q, qd)()
+    reused = lazy_kinematics(data, q, qd, point_rates(data, q, qd))()
+    for name in ("g", "J", "xi", "eta", "Jdot"):
+        # round-off of O(10) products of unit-size numbers, as above
+        np.testing.assert_allclose(
+            getattr(reused, name), getattr(full, name), atol=1e-12, err_msg=name
+        )
 
 
 def test_leaves_wrenches_map_as_their_jacobians_transpose(rods, state):

@@ -25,6 +25,7 @@ from ..kinematics._recursion import (
     PointRates,
     jacobians_dot,
     kinematics_and_rates,
+    point_jacobians,
     point_rates,
     rows_of,
     strains,
@@ -49,16 +50,24 @@ InputFunction = Callable[[Array], Array]
 """``u(t) -> (n_inputs,)`` actuation inputs as a function of time (pure JAX)."""
 
 
-def lazy_kinematics(data: LinkageData, q, qd):
+def lazy_kinematics(data: LinkageData, q, qd, rates: PointRates | None = None):
     """A function returning the :class:`Kinematics` the hooks read, built once.
 
-    Traced only if a hook asks (every point's Jacobian, strain and Jacobian rate).
+    Traced only if a hook asks. With ``rates`` (the dynamics' :func:`point_rates` at
+    ``(q, qd)``) its poses and twists are those already computed and every point's
+    Jacobian is carried from them (:func:`point_jacobians`), so that each field is
+    a computation of its own: XLA drops those no hook reads (the damping hooks of
+    :mod:`sorojax.contrib.cosseratbench` read the twists only, and the Jacobians'
+    pass cost a quarter of the capstan's evaluation).
     """
     cache: list = []
 
     def kin_fn():
         if not cache:
-            g, J, eta, _ = kinematics_and_rates(data, q, qd)
+            if rates is None:
+                g, J, eta, _ = kinematics_and_rates(data, q, qd)
+            else:
+                g, eta, J = rates.g, rates.eta, point_jacobians(data, rates)
             Jdot = jacobians_dot(data, q, qd)
             cache.append(Kinematics(g=g, J=J, xi=strains(data, q), eta=eta, Jdot=Jdot))
         return cache[0]
@@ -92,7 +101,7 @@ def mass_and_force(
         rates = point_rates(data, q, qd)
     g, eta = rates.g, rates.eta
     if kin_fn is None:
-        kin_fn = lazy_kinematics(data, q, qd)
+        kin_fn = lazy_kinematics(data, q, qd, rates)
     row = rows_of(data, rates)
     idx = np.asarray(data.mass_points, dtype=int)
     rows = row[idx]  # the mass points' rows in J
@@ -250,7 +259,7 @@ def constrained_dynamics(
         Tb = linkage.baumgarte_time
         rows.append(A)
         rhs.append(-bias - (2.0 / Tb) * (A @ qd) - e / Tb**2)
-    kin_fn = lazy_kinematics(data, q, qd)
+    kin_fn = lazy_kinematics(data, q, qd, rates)
     M, f = mass_and_force(linkage, data, t, q, qd, generalized_force, u, rates, kin_fn)
     if rows:
         G, b = jnp.concatenate(rows), jnp.concatenate(rhs)
