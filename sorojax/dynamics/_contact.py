@@ -847,7 +847,7 @@ def _point_jacobian(g, J, point, x_c):
     Jp = J[point]
     a_b = _rotate_back(R, x_c - p)
     Jv = Jp[:, 3:] - jnp.cross(a_b[:, :, None], Jp[:, :3], axis=1)
-    return jnp.sum(R[:, :, :, None] * Jv[:, None, :, :], axis=2)
+    return _rotate(R[:, None], jnp.moveaxis(Jv, 1, 2)).swapaxes(1, 2)
 
 
 def _tangent_slopes(law, weight, d, n, v_rel, friction: bool = True):
@@ -952,7 +952,7 @@ def contact_tangent(linkage: Linkage, t, g, J, eta) -> tuple[Array, Array]:
         at += m * len(kind)
     Jc = jnp.concatenate(rows)
     n, kn, cnt, ct = (jnp.concatenate(x) for x in zip(*slopes, strict=True))
-    Jn = jnp.sum(n[:, :, None] * Jc, axis=1)  # normal rows
+    Jn = n[:, 0, None] * Jc[:, 0] + n[:, 1, None] * Jc[:, 1] + n[:, 2, None] * Jc[:, 2]
     K = (kn[:, None] * Jn).T @ Jn
     D = (cnt[:, None] * Jn).T @ Jn + jnp.einsum("n,nik,nil->kl", ct, Jc, Jc)
     return K, D
