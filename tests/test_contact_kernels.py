@@ -97,18 +97,27 @@ def test_leaf_twists_jacobians_and_rates_are_the_derivatives_of_the_poses(rods, 
 
 def test_hooks_read_the_same_kinematics_from_the_dynamics_rates(rods, state):
     # Inside the dynamics the hooks' Kinematics reuses point_rates' poses and twists
-    # and carries the Jacobians from them (so that XLA drops the fields no hook
-    # reads); it must equal the full pass's, leaves (contact samples) included.
+    # and carries the Jacobians from them; it must equal the full pass's, leaves
+    # (contact samples) included. A hook is given only the fields it reads (the
+    # others zeros, so that they are neither traced nor compiled).
     _, lk = rods
     q, qd = state
     data = precompute(lk)
-    full = lazy_kinematics(data, q, qd)()
-    reused = lazy_kinematics(data, q, qd, point_rates(data, q, qd))()
-    for name in ("g", "J", "xi", "eta", "Jdot"):
+    g, J, eta, _ = kinematics_and_rates(data, q, qd)
+    kin_fn = lazy_kinematics(data, q, qd, point_rates(data, q, qd))
+    kin = kin_fn()
+    for name, ref in (("g", g), ("J", J), ("eta", eta)):
         # round-off of O(10) products of unit-size numbers, as above
-        np.testing.assert_allclose(
-            getattr(reused, name), getattr(full, name), atol=1e-12, err_msg=name
+        np.testing.assert_allclose(getattr(kin, name), ref, atol=1e-12, err_msg=name)
+    damping = kin_fn(lambda k: -2.0 * k.eta)  # reads the twists only
+    np.testing.assert_array_equal(damping.eta, kin.eta)
+    for name in ("g", "J", "xi", "Jdot"):
+        assert not np.any(getattr(damping, name)), (
+            f"{name} given to a hook not reading it"
         )
+    mapped = kin_fn(lambda k: jnp.einsum("pai,pa->i", k.J, k.eta))
+    np.testing.assert_array_equal(mapped.J, kin.J)
+    assert not np.any(mapped.Jdot)
 
 
 def test_leaves_wrenches_map_as_their_jacobians_transpose(rods, state):

@@ -14,6 +14,8 @@ constant offset in an inextensible rod ``dl/dk_z = -y``: the tension bends the r
 toward the cable with moment ``T y``.
 """
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -253,7 +255,8 @@ def effective_inputs(linkage: Linkage, t, q, qd, kin_fn, u) -> Array:
     """Inputs after the actuator-strength hook (prescribed entries kept from ``u``)."""
     if linkage.actuator_strength is None:
         return u
-    v = jnp.asarray(linkage.actuator_strength(t, q, qd, kin_fn()), dtype=q.dtype)
+    hook = functools.partial(linkage.actuator_strength, t, q, qd)
+    v = jnp.asarray(hook(kin_fn(hook)), dtype=q.dtype)
     if v.shape != (linkage.n_inputs,):
         raise ValueError(
             f"Linkage.actuator_strength returned shape {v.shape}; expected "
@@ -271,8 +274,9 @@ def actuation_loads(linkage: Linkage, data: LinkageData, t, q, qd, u, kin_fn, g)
     None) holds body wrenches of cable segments outside the body, to be mapped by
     ``J^T`` (or the backward recursion) together with the other point loads.
     Prescribed joints contribute nothing here: their efforts are unknowns of the
-    solvers. ``kin_fn()`` returns the :class:`Kinematics` the hooks read; ``g`` are
-    the point poses at ``q``.
+    solvers. ``kin_fn(read)`` returns the :class:`Kinematics` at ``(q, qd)`` with the
+    fields the hook call ``read(kinematics)`` reads (:func:`~sorojax.dynamics._eom.
+    lazy_kinematics`); ``g`` are the point poses at ``q``.
     """
     Q = jnp.zeros_like(q)
     W = None
@@ -288,21 +292,10 @@ def actuation_loads(linkage: Linkage, data: LinkageData, t, q, qd, u, kin_fn, g)
         Q = Q + Qc
         W = Wc if has_segments(linkage) else None
     if linkage.custom_actuation is not None:
-        Q = Q + custom_actuation_force(linkage, data, t, q, qd, kin_fn(), u)
+        hook = functools.partial(linkage.custom_actuation, t, q, qd)
+        kin = kin_fn(lambda kin: hook(kin, u))
+        Q = Q + custom_actuation_force(linkage, data, t, q, qd, kin, u)
     return Q, W
-
-
-def actuation_force(linkage: Linkage, data: LinkageData, t, q, qd, u, kin_fn) -> Array:
-    """Generalised force of all actuators at inputs ``u`` (hook applied).
-
-    ``kin_fn()`` returns the :class:`Kinematics` at ``(q, qd)`` (its Jacobians map
-    the cable segments' wrenches).
-    """
-    g = kin_fn().g if has_segments(linkage) else None
-    Q, W = actuation_loads(linkage, data, t, q, qd, u, kin_fn, g)
-    if W is not None:
-        Q = Q + jnp.einsum("pai,pa->i", kin_fn().J, W)
-    return Q
 
 
 def custom_actuation_force(

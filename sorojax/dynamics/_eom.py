@@ -10,6 +10,7 @@ crosses its step to its chain point). K and D are constant
 (precomputed once per solve, outside the integrator's loop).
 """
 
+import functools
 from collections.abc import Callable
 
 import equinox as eqx
@@ -24,7 +25,6 @@ from ..kinematics._api import Kinematics, _as_q
 from ..kinematics._recursion import (
     PointRates,
     jacobians_dot,
-    kinematics_and_rates,
     point_jacobians,
     point_rates,
     rows_of,
@@ -50,27 +50,71 @@ InputFunction = Callable[[Array], Array]
 """``u(t) -> (n_inputs,)`` actuation inputs as a function of time (pure JAX)."""
 
 
-def lazy_kinematics(data: LinkageData, q, qd, rates: PointRates | None = None):
-    """A function returning the :class:`Kinematics` the hooks read, built once.
+_FIELDS = ("g", "J", "xi", "eta", "Jdot")
 
-    Traced only if a hook asks. With ``rates`` (the dynamics' :func:`point_rates` at
-    ``(q, qd)``) its poses and twists are those already computed and every point's
-    Jacobian is carried from them (:func:`point_jacobians`), so that each field is
-    a computation of its own: XLA drops those no hook reads (the damping hooks of
-    :mod:`sorojax.contrib.cosseratbench` read the twists only, and the Jacobians'
-    pass cost a quarter of the capstan's evaluation).
+
+def _fields_read(read: Callable, shapes: dict) -> frozenset[str]:
+    """The :class:`Kinematics` fields that ``read(kinematics)`` reads.
+
+    ``read`` (a hook's call) is traced once on abstract fields and a field counts as
+    read where the trace uses it; if that trace fails, every field.
     """
-    cache: list = []
 
-    def kin_fn():
-        if not cache:
-            if rates is None:
-                g, J, eta, _ = kinematics_and_rates(data, q, qd)
-            else:
-                g, eta, J = rates.g, rates.eta, point_jacobians(data, rates)
-            Jdot = jacobians_dot(data, q, qd)
-            cache.append(Kinematics(g=g, J=J, xi=strains(data, q), eta=eta, Jdot=Jdot))
-        return cache[0]
+    def probe(*fields):
+        return read(Kinematics(**dict(zip(_FIELDS, fields, strict=True))))
+
+    try:
+        jaxpr = jax.make_jaxpr(probe)(*(shapes[name] for name in _FIELDS)).jaxpr
+    except Exception:  # noqa: BLE001 - the real call raises its own error
+        return frozenset(_FIELDS)
+    used = {id(v) for eqn in jaxpr.eqns for v in eqn.invars}
+    used |= {id(v) for v in jaxpr.outvars}
+    return frozenset(
+        name for name, v in zip(_FIELDS, jaxpr.invars, strict=True) if id(v) in used
+    )
+
+
+def lazy_kinematics(data: LinkageData, q, qd, rates: PointRates):
+    """``kin_fn(read)``: the :class:`Kinematics` a hook call ``read(kinematics)`` reads.
+
+    Each field is traced only if some hook reads it (:func:`_fields_read`), once;
+    the fields a hook does not read are zeros in the kinematics it is given (its
+    result does not depend on them). ``rates``, the dynamics' :func:`point_rates` at
+    ``(q, qd)``, give the poses and twists; every point's Jacobian is carried from
+    them (:func:`point_jacobians`). A field nobody reads is neither traced nor
+    compiled: the damping hooks of :mod:`sorojax.contrib.cosseratbench` read the
+    twists only, the crawler's actuation hook (``examples/crawler_gait.py``) nothing.
+    """
+    n_pts, n = rates.g.shape[0], q.shape[0]
+    shapes = {
+        "g": (n_pts, 4, 4),
+        "J": (n_pts, 6, n),
+        "xi": (n_pts, 6),
+        "eta": (n_pts, 6),
+        "Jdot": (n_pts, 6, n),
+    }
+    make = {
+        "g": lambda: rates.g,
+        "J": lambda: point_jacobians(data, rates),
+        "xi": lambda: strains(data, q),
+        "eta": lambda: rates.eta,
+        "Jdot": lambda: jacobians_dot(data, q, qd),
+    }
+    cache: dict = {}
+
+    def kin_fn(read: Callable | None = None) -> Kinematics:
+        if read is None:
+            names = frozenset(_FIELDS)
+        else:
+            abstract = {k: jax.ShapeDtypeStruct(v, q.dtype) for k, v in shapes.items()}
+            names = _fields_read(read, abstract)
+        for name in names:
+            if name not in cache:
+                cache[name] = make[name]()
+        return Kinematics(**{
+            k: cache[k] if k in names else jnp.zeros(shapes[k], q.dtype)
+            for k in _FIELDS
+        })  # fmt: skip
 
     return kin_fn
 
@@ -119,7 +163,8 @@ def mass_and_force(
     if linkage.contact is not None:
         W = W + contact_wrenches(linkage, t, g, eta)
     if linkage.custom_wrench is not None:
-        W = W + custom_wrenches(linkage, data, t, q, qd, kin_fn())
+        read = functools.partial(linkage.custom_wrench, t, q, qd)
+        W = W + custom_wrenches(linkage, data, t, q, qd, kin_fn(read))
     if u is not None:
         Qa, Wa = actuation_loads(linkage, data, t, q, qd, u, kin_fn, g)
         if Wa is not None:

@@ -112,7 +112,7 @@ def _residual_and_closure(linkage: Linkage, data: LinkageData, q, t, lam, u, mu)
     Q = jnp.zeros_like(q)
     if linkage.actuators or linkage.custom_actuation is not None:
         u = jnp.zeros(linkage.n_inputs, q.dtype) if u is None else u
-        Qa, Wa = actuation_loads(linkage, data, t, q, qd, u, lambda: kin, g)
+        Qa, Wa = actuation_loads(linkage, data, t, q, qd, u, lambda read=None: kin, g)
         Q = lam * Qa
         if Wa is not None:
             W = W + lam * Wa
