@@ -351,12 +351,21 @@ def test_custom_wrench_hook_reproduces_gravity():
         f = rhoA * jnp.einsum("pji,j->pi", kin.g[:, :3, :3], a)
         return jnp.concatenate([jnp.zeros_like(f), f], axis=1)
 
+    def hook_reading_J(t, q, qd, kin):
+        # the same load; reading the Jacobians (times zero) makes statics map the
+        # loads by J^T W instead of the backward wrench recursion
+        return hook(t, q, qd, kin) + 0.0 * jnp.sum(kin.J, axis=2)
+
     with_hook = sj.Linkage([_sag_rod(6)], custom_wrench=hook)
+    with_J = sj.Linkage([_sag_rod(6)], custom_wrench=hook_reading_J)
     with_grav = sj.Linkage([_sag_rod(6)], gravity=(0.0, -9.81, 0.0))
     q_h = sj.solve_statics(with_hook).q
+    q_J = sj.solve_statics(with_J).q
     q_g = sj.solve_statics(with_grav).q
-    # Same distributed load through two code paths (J^T W vs backward recursion).
+    # The same distributed load as a hook's and as gravity, and through the two
+    # mappings (backward recursion, J^T W): equal to the solver's tolerance.
     np.testing.assert_allclose(q_h, q_g, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(q_J, q_g, rtol=1e-9, atol=1e-12)
 
 
 def test_time_dependent_point_wrench_is_evaluated_at_t():

@@ -74,6 +74,38 @@ def _fields_read(read: Callable, shapes: dict) -> frozenset[str]:
     )
 
 
+def _field_shapes(n_points: int, n_dof: int, dtype) -> dict:
+    """Abstract :class:`Kinematics` fields of a linkage, by name."""
+    shapes = {
+        "g": (n_points, 4, 4),
+        "J": (n_points, 6, n_dof),
+        "xi": (n_points, 6),
+        "eta": (n_points, 6),
+        "Jdot": (n_points, 6, n_dof),
+    }
+    return {k: jax.ShapeDtypeStruct(v, dtype) for k, v in shapes.items()}
+
+
+def hooks_read(linkage: Linkage, t, q, qd, u, n_points: int) -> frozenset[str] | None:
+    """The :class:`Kinematics` fields the linkage's hooks read; None: it has none.
+
+    ``u``: the inputs (None: zeros), for the custom actuation hook's trace.
+    """
+    calls = []
+    if linkage.custom_wrench is not None:
+        calls.append(functools.partial(linkage.custom_wrench, t, q, qd))
+    if linkage.actuator_strength is not None:
+        calls.append(functools.partial(linkage.actuator_strength, t, q, qd))
+    if linkage.custom_actuation is not None:
+        u_ = jnp.zeros(linkage.n_inputs, q.dtype) if u is None else u
+        hook = functools.partial(linkage.custom_actuation, t, q, qd)
+        calls.append(lambda kin: hook(kin, u_))
+    if not calls:
+        return None
+    shapes = _field_shapes(n_points, q.shape[0], q.dtype)
+    return frozenset().union(*(_fields_read(c, shapes) for c in calls))
+
+
 def lazy_kinematics(data: LinkageData, q, qd, rates: PointRates):
     """``kin_fn(read)``: the :class:`Kinematics` a hook call ``read(kinematics)`` reads.
 
@@ -85,14 +117,7 @@ def lazy_kinematics(data: LinkageData, q, qd, rates: PointRates):
     compiled: the damping hooks of :mod:`sorojax.contrib.cosseratbench` read the
     twists only, the crawler's actuation hook (``examples/crawler_gait.py``) nothing.
     """
-    n_pts, n = rates.g.shape[0], q.shape[0]
-    shapes = {
-        "g": (n_pts, 4, 4),
-        "J": (n_pts, 6, n),
-        "xi": (n_pts, 6),
-        "eta": (n_pts, 6),
-        "Jdot": (n_pts, 6, n),
-    }
+    shapes = _field_shapes(rates.g.shape[0], q.shape[0], q.dtype)
     make = {
         "g": lambda: rates.g,
         "J": lambda: point_jacobians(data, rates),
@@ -103,16 +128,12 @@ def lazy_kinematics(data: LinkageData, q, qd, rates: PointRates):
     cache: dict = {}
 
     def kin_fn(read: Callable | None = None) -> Kinematics:
-        if read is None:
-            names = frozenset(_FIELDS)
-        else:
-            abstract = {k: jax.ShapeDtypeStruct(v, q.dtype) for k, v in shapes.items()}
-            names = _fields_read(read, abstract)
+        names = frozenset(_FIELDS) if read is None else _fields_read(read, shapes)
         for name in names:
             if name not in cache:
                 cache[name] = make[name]()
         return Kinematics(**{
-            k: cache[k] if k in names else jnp.zeros(shapes[k], q.dtype)
+            k: cache[k] if k in names else jnp.zeros(shapes[k].shape, q.dtype)
             for k in _FIELDS
         })  # fmt: skip
 

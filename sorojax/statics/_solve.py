@@ -47,12 +47,12 @@ from ..dynamics._contact import (
     smallest_radius,
     state_from_data,
 )
-from ..dynamics._eom import as_inputs
+from ..dynamics._eom import as_inputs, hooks_read
 from ..dynamics._external import custom_wrenches, external_wrenches
 from ..dynamics._generalized import kinematics_from_data
 from ..dynamics._wrench_recursion import force_from_wrenches, poses_with_records
-from ..kinematics._api import _as_q
-from ..kinematics._recursion import poses
+from ..kinematics._api import Kinematics, _as_q
+from ..kinematics._recursion import poses, strains
 from ..model._checks import check_finite, check_tolerances, is_concrete
 from ..model._linkage import Linkage
 from ..model._precompute import LinkageData, precompute
@@ -87,21 +87,22 @@ def _residual_and_closure(linkage: Linkage, data: LinkageData, q, t, lam, u, mu)
     Every load is gathered as body wrenches at the significant points (gravity,
     point wrenches, cable segments outside the body, the multipliers' ``A^T mu``)
     and mapped to the coordinates together, by the backward wrench recursion (no
-    Jacobian formed) or, when a hook reads the kinematics, by ``J^T``; only joint
-    actuators and cable spans act on the coordinates directly.
+    Jacobian formed) or, when a hook reads the Jacobians, by ``J^T``; only joint
+    actuators and cable spans act on the coordinates directly. The hooks' twists
+    and Jacobian rates are zero here (``qd = 0``).
     """
     qd = jnp.zeros_like(q)
-    hooks = (
-        linkage.custom_wrench is not None
-        or linkage.actuator_strength is not None
-        or linkage.custom_actuation is not None
-    )
-    if hooks:  # the hooks may read Jacobians: form them once
+    read = hooks_read(linkage, t, q, qd, u, data.point_weight.shape[0])
+    if read is not None and "J" in read:  # every point's Jacobian, for J^T W too
         kin = kinematics_from_data(data, q, qd, need_jdot=False)
         g, records = kin.g, None
     else:
         g, records = poses_with_records(data, q)
         kin = None
+        if read is not None:  # hooks that read no Jacobian
+            z6 = jnp.zeros((g.shape[0], 6), q.dtype)
+            zJ = jnp.zeros((g.shape[0], 6, q.shape[0]), q.dtype)
+            kin = Kinematics(g=g, J=zJ, xi=strains(data, q), eta=z6, Jdot=zJ)
     W = lam * external_wrenches(linkage, data, t, g)
     d = jnp.zeros((0,), q.dtype)
     if linkage.contact is not None:  # a reaction: never scaled by the load factor
@@ -122,7 +123,7 @@ def _residual_and_closure(linkage: Linkage, data: LinkageData, q, t, lam, u, mu)
         e, Wc = closure_errors_and_wrenches(linkage, g, mu_)
         if mu is not None:
             W = W + Wc
-    if kin is None:
+    if records is not None:
         F = force_from_wrenches(data, records, W)
     else:
         F = jnp.einsum("pai,pa->i", kin.J, W)
