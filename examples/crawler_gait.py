@@ -127,7 +127,7 @@ def main(argv=None):
     def dpc(params):
         return distance_per_cycle(params, a.cycles)[0]
 
-    def value_and_grad(params):
+    def distance_and_gradient(params):
         """The distance and its gradient (forward mode: two tangents) at once."""
         grad, value = jax.jacfwd(lambda x: (dpc(x),) * 2, has_aux=True)(params)
         return value, grad
@@ -136,14 +136,14 @@ def main(argv=None):
     # Each program is traced here and compiled in a worker thread (XLA's compile does
     # not hold Python's lock) while this thread traces the next or runs the last:
     # the grid's; the gradient's; one rollout's (for the central differences and the
-    # gait drawn at the end). long_run: sorojax's XLA options for programs run many
-    # times (the ascent's 17 rollouts: 34 s against 37 s).
+    # gait drawn at the end); long_run: sorojax's XLA options for programs that run
+    # many times.
     As = np.linspace(A_MAX / a.grid, A_MAX, a.grid)
     phis = np.linspace(0.0, 2 * np.pi, a.grid, endpoint=False)
     grid = jnp.asarray([(A, ph) for A in As for ph in phis])
     x0 = jnp.asarray([0.3 * A_MAX, 0.5])  # the ascent's start
     on_grid = sj.jit(jax.vmap(dpc), tiered=False, long_run=True)
-    value_and_grad = sj.jit(value_and_grad, tiered=False, long_run=True)
+    value_and_grad = sj.jit(distance_and_gradient, tiered=False, long_run=True)
     rollout = sj.jit(lambda x: distance_per_cycle(x, a.cycles, n_save=9),
                      tiered=False, long_run=True)  # fmt: skip
     t0 = time.perf_counter()
