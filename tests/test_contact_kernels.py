@@ -25,6 +25,7 @@ from sorojax.kinematics._recursion import (
     kinematics_and_rates,
     point_jacobians,
     point_rates,
+    rest_rates,
 )
 from sorojax.model._precompute import precompute
 
@@ -118,6 +119,19 @@ def test_hooks_read_the_same_kinematics_from_the_dynamics_rates(rods, state):
     mapped = kin_fn(lambda k: jnp.einsum("pai,pa->i", k.J, k.eta))
     np.testing.assert_array_equal(mapped.J, kin.J)
     assert not np.any(mapped.Jdot)
+
+
+def test_rest_rates_are_the_point_rates_at_rest(rods, state):
+    # A start's velocity projection takes the poses and Jacobians at rest without
+    # the rates' columns: the same poses and chain Jacobians as point_rates at
+    # qd = 0 (the same kernels, up to XLA's fusion: round-off), zero twists.
+    _, lk = rods
+    q, _ = state
+    data = precompute(lk)
+    full, rest = point_rates(data, q, jnp.zeros_like(q)), rest_rates(data, q)
+    np.testing.assert_allclose(rest.g, full.g, atol=1e-14, err_msg="poses")
+    np.testing.assert_allclose(rest.J, full.J, atol=1e-13, err_msg="Jacobians")
+    assert not np.any(rest.eta) and not np.any(rest.etadot)
 
 
 def test_leaves_wrenches_map_as_their_jacobians_transpose(rods, state):

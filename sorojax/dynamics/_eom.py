@@ -27,6 +27,7 @@ from ..kinematics._recursion import (
     jacobians_dot,
     point_jacobians,
     point_rates,
+    rest_rates,
     rows_of,
     strains,
 )
@@ -140,6 +141,18 @@ def lazy_kinematics(data: LinkageData, q, qd, rates: PointRates):
     return kin_fn
 
 
+def mass_matrix(linkage: Linkage, data: LinkageData, rates: PointRates) -> Array:
+    """``M`` from the chain points' Jacobians, the linkage's added mass included."""
+    row = rows_of(data, rates)
+    M = _mass_from_J(data, rates.J, row)
+    if linkage.added_mass is None:
+        return M
+    idx = np.asarray(data.mass_points, dtype=int)
+    J_m = rates.J[row[idx]]
+    Ma = data.point_weight[idx, None, None] * linkage.added_mass[idx]
+    return M + jnp.einsum("pai,pab,pbj->ij", J_m, Ma, J_m)
+
+
 def mass_and_force(
     linkage: Linkage,
     data: LinkageData,
@@ -175,11 +188,10 @@ def mass_and_force(
     W_m = gravity_wrenches(data, g[idx], idx) - _gyroscopic(
         Mw, eta[idx], rates.etadot[rows]
     )
-    M = _mass_from_J(data, rates.J, row)
+    M = mass_matrix(linkage, data, rates)
     if linkage.added_mass is not None:
         Ma = data.point_weight[idx, None, None] * linkage.added_mass[idx]
         W_m = W_m - jnp.einsum("pab,pb->pa", Ma, rates.etadot[rows])
-        M = M + jnp.einsum("pai,pab,pbj->ij", J_m, Ma, J_m)
     W = point_wrenches(linkage, t, g)  # gravity: with the inertial forces
     if linkage.contact is not None:
         W = W + contact_wrenches(linkage, t, g, eta)
@@ -363,13 +375,12 @@ def consistent_velocities(
         _, qdp, _ = prescribed_motion(linkage, u_fn, t)
         rows.append(jnp.eye(q.shape[0], dtype=q.dtype)[qi])
         rhs.append(qdp)
-    qd0 = jnp.zeros_like(qd)
-    rates = point_rates(data, q, qd0)  # at rest: zero twists and rates
+    rates = rest_rates(data, q)  # zero twists and rates: A and M need J only
     if linkage.closed_loops:  # A from the body Jacobians M needs anyway
         rows.append(_loop_terms(linkage, data, rates)[1])
         rhs.append(jnp.zeros(linkage.n_constraints, q.dtype))
     G, b = jnp.concatenate(rows), jnp.concatenate(rhs)
-    M = mass_and_force(linkage, data, t, q, qd0, rates=rates)[0]
+    M = mass_matrix(linkage, data, rates)
     Minv_Gt = spd_solve(M, G.T)
     S = G @ Minv_Gt
     eps = 1e-12 * jnp.maximum(jnp.trace(S) / S.shape[0], 1e-300)

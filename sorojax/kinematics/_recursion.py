@@ -683,6 +683,21 @@ def point_rates(data: LinkageData, q, qd) -> PointRates:
     return PointRates(g_all, with_leaves(lay, eta, eta_l), J, etadot, kl)
 
 
+def rest_rates(data: LinkageData, q) -> PointRates:
+    """:class:`PointRates` at rest (``qd = 0``): poses and the chain's Jacobians only.
+
+    The twists and their rates are zeros, not computed: for the mass matrix and the
+    loops' constraint rows at a configuration (the projection of a start's
+    velocities), without the rates' columns.
+    """
+    g, J, _, (_, _, lay) = _tree_pass(data, q, None, None, core_only=True)
+    kl = leaf_steps(data, q)
+    if kl is not None:
+        g = with_leaves(lay, g, leaf_poses(lay, g, kl))
+    z = jnp.zeros((g.shape[0], 6), q.dtype)
+    return PointRates(g, z, J, z[: J.shape[0]], kl)
+
+
 def _tree_pass(data: LinkageData, q, V, qd, core_only: bool = False):
     """Poses, Jacobians (times ``V``) and, when ``qd`` is given, twists and rates.
 
