@@ -105,6 +105,8 @@ def grasp(lk, tension, t1, n_save=61, solver="rosenbrock_euler", dt=2e-3,
     # the tension as an array argument: every tension runs the same program
     u = eqx.Partial(inputs, tension=jnp.asarray(tension))
     steps = dict(rtol=rtol, atol=atol) if dt is None else dict(dt0=dt)
+    # the ball's heights' program compiles in a worker thread beside the simulation's
+    ball_heights.compile_ahead(lk, np.zeros((n_save, lk.n_dof)))
     tr = sj.simulate(lk, t1, u=u, solver=solver, n_save=n_save,
                      max_steps=200_000, **steps)  # fmt: skip
     return tr, np.asarray(ball_heights(lk, tr.q)), np.asarray(tr.q[:, 0])
