@@ -338,9 +338,16 @@ def test_rod_pair_stiffness_in_w_matches_the_force_derivative():
 
     lk = crossing_rods(0.5)
     q = sj.solve_statics(lk).q
-    kin = kinematics_from_data(precompute(lk), q, jnp.zeros_like(q), need_jdot=False)
-    Kc, Dc = contact_tangent(lk, 0.0, kin.g, kin.J, kin.eta)
-    K_num = -jax.jacfwd(lambda q_: sj.generalized_external_force(lk, q_))(q)
+
+    @jax.jit  # one program, not the kernels' operations one by one
+    def tangents(q):
+        kin = kinematics_from_data(
+            precompute(lk), q, jnp.zeros_like(q), need_jdot=False
+        )
+        Kc, _ = contact_tangent(lk, 0.0, kin.g, kin.J, kin.eta)
+        return Kc, -jax.jacfwd(lambda q_: sj.generalized_external_force(lk, q_))(q)
+
+    Kc, K_num = tangents(q)
     scale = float(jnp.linalg.norm(K_num))
     assert scale > 1.0, "the pair's contact stiffness should show in -dQ/dq"
     assert float(jnp.linalg.norm(Kc - K_num)) < 1e-2 * scale

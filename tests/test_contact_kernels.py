@@ -74,8 +74,16 @@ def test_leaf_twists_jacobians_and_rates_are_the_derivatives_of_the_poses(rods, 
     _, lk = rods
     q, qd = state
     data = precompute(lk)
-    g, J, eta, etadot = kinematics_and_rates(data, q, qd)
-    gdot = jax.jvp(lambda q_: sj.forward_kinematics(lk, q_), (q,), (qd,))[1]
+
+    @jax.jit  # one program, not the kernels' operations one by one
+    def terms(q, qd):
+        g, J, eta, etadot = kinematics_and_rates(data, q, qd)
+        gdot = jax.jvp(lambda q_: sj.forward_kinematics(lk, q_), (q,), (qd,))[1]
+        rate = jax.jvp(lambda q_: kinematics_and_rates(data, q_, qd)[2], (q,), (qd,))[1]
+        pr = point_rates(data, q, qd)
+        return g, J, eta, etadot, gdot, rate, pr.g, pr.eta, point_jacobians(data, pr)
+
+    g, J, eta, etadot, gdot, rate, pr_g, pr_eta, pr_J = terms(q, qd)
     Rt = jnp.swapaxes(g[:, :3, :3], 1, 2)
     W = Rt @ gdot[:, :3, :3]
     twist = jnp.concatenate(
@@ -85,15 +93,11 @@ def test_leaf_twists_jacobians_and_rates_are_the_derivatives_of_the_poses(rods, 
     # round-off of O(10) products of unit-size numbers
     np.testing.assert_allclose(eta, twist, atol=1e-12, err_msg="eta = (g^-1 gdot)^v")
     np.testing.assert_allclose(eta, J @ qd, atol=1e-12, err_msg="eta = J qd")
-    rate = jax.jvp(lambda q_: kinematics_and_rates(data, q_, qd)[2], (q,), (qd,))[1]
     np.testing.assert_allclose(etadot, rate, atol=1e-11, err_msg="Jdot qd")
-    pr = point_rates(data, q, qd)
-    np.testing.assert_allclose(pr.g, g, atol=0.0, err_msg="point_rates poses")
-    np.testing.assert_allclose(pr.eta, eta, atol=1e-13, err_msg="point_rates twists")
+    np.testing.assert_allclose(pr_g, g, atol=0.0, err_msg="point_rates poses")
+    np.testing.assert_allclose(pr_eta, eta, atol=1e-13, err_msg="point_rates twists")
     # every point's Jacobian from the chain points' (the contacts' tangent in W)
-    np.testing.assert_allclose(
-        point_jacobians(data, pr), J, atol=1e-13, err_msg="point_jacobians"
-    )
+    np.testing.assert_allclose(pr_J, J, atol=1e-13, err_msg="point_jacobians")
 
 
 def test_hooks_read_the_same_kinematics_from_the_dynamics_rates(rods, state):
@@ -104,19 +108,23 @@ def test_hooks_read_the_same_kinematics_from_the_dynamics_rates(rods, state):
     _, lk = rods
     q, qd = state
     data = precompute(lk)
-    g, J, eta, _ = kinematics_and_rates(data, q, qd)
-    kin_fn = lazy_kinematics(data, q, qd, point_rates(data, q, qd))
-    kin = kin_fn()
+
+    @jax.jit  # one program, not the kernels' operations one by one
+    def terms(q, qd):
+        kin_fn = lazy_kinematics(data, q, qd, point_rates(data, q, qd))
+        damping = kin_fn(lambda k: -2.0 * k.eta)  # reads the twists only
+        mapped = kin_fn(lambda k: jnp.einsum("pai,pa->i", k.J, k.eta))
+        return kinematics_and_rates(data, q, qd), kin_fn(), damping, mapped
+
+    (g, J, eta, _), kin, damping, mapped = terms(q, qd)
     for name, ref in (("g", g), ("J", J), ("eta", eta)):
         # round-off of O(10) products of unit-size numbers, as above
         np.testing.assert_allclose(getattr(kin, name), ref, atol=1e-12, err_msg=name)
-    damping = kin_fn(lambda k: -2.0 * k.eta)  # reads the twists only
     np.testing.assert_array_equal(damping.eta, kin.eta)
     for name in ("g", "J", "xi", "Jdot"):
         assert not np.any(getattr(damping, name)), (
             f"{name} given to a hook not reading it"
         )
-    mapped = kin_fn(lambda k: jnp.einsum("pai,pa->i", k.J, k.eta))
     np.testing.assert_array_equal(mapped.J, kin.J)
     assert not np.any(mapped.Jdot)
 

@@ -431,15 +431,18 @@ def test_many_tangent_rules_equal_autodiff_of_the_kernels(key):
     def plain(O):
         return jax.vmap(exp_and_tangent)(O)
 
-    got = jax.jvp(exp_and_tangent_many, (Omega,), (dO,))[1]
-    want = jax.jvp(plain, (Omega,), (dO,))[1]
+    # each side as one program (jit), not the kernels' operations one by one
+    got = jax.jit(lambda O, d: jax.jvp(exp_and_tangent_many, (O,), (d,))[1])(Omega, dO)
+    want = jax.jit(lambda O, d: jax.jvp(plain, (O,), (d,))[1])(Omega, dO)
     for a, b in zip(got, want, strict=True):
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-11)
-    got2 = jax.jacfwd(jax.jacfwd(lambda O: exp_and_tangent_many(O)[2]))(Omega[2:4])
-    want2 = jax.jacfwd(jax.jacfwd(lambda O: plain(O)[2]))(Omega[2:4])
+    got2 = jax.jit(jax.jacfwd(jax.jacfwd(lambda O: exp_and_tangent_many(O)[2])))(
+        Omega[2:4]
+    )
+    want2 = jax.jit(jax.jacfwd(jax.jacfwd(lambda O: plain(O)[2])))(Omega[2:4])
     np.testing.assert_allclose(got2, want2, rtol=0, atol=1e-11)
 
-    R, p, _ = plain(Omega)
+    R, p, _ = jax.jit(plain)(Omega)
     R, p = R.reshape(1, 7, 3, 3), p.reshape(1, 7, 3)
     dR = jax.random.normal(k1, R.shape)  # any tangents: the rule is exact for all
     dp = jax.random.normal(k2, p.shape)
@@ -452,14 +455,11 @@ def test_many_tangent_rules_equal_autodiff_of_the_kernels(key):
         return jnp.stack([g[0] for g in G])[None], jnp.stack([g[1] for g in G])[None]
 
     for sequential in (False, True):
-        got = jax.jvp(
-            functools.partial(rec._prefix_poses, sequential=sequential),
-            (R, p),
-            (dR, dp),
-        )
-        want = jax.jvp(by_hand, (R, p), (dR, dp))
+        prefix = functools.partial(rec._prefix_poses, sequential=sequential)
+        got = jax.jit(lambda *a, f=prefix: jax.jvp(f, a[:2], a[2:]))(R, p, dR, dp)
+        want = jax.jit(lambda *a: jax.jvp(by_hand, a[:2], a[2:]))(R, p, dR, dp)
         for a, b in zip(jax.tree.leaves(got), jax.tree.leaves(want), strict=True):
             np.testing.assert_allclose(a, b, rtol=0, atol=1e-11)
-    hess = jax.hessian(lambda p: jnp.sum(rec._prefix_poses(R, p)[0] ** 3))(p)
-    hess_ref = jax.hessian(lambda p: jnp.sum(by_hand(R, p)[0] ** 3))(p)
+    hess = jax.jit(jax.hessian(lambda p: jnp.sum(rec._prefix_poses(R, p)[0] ** 3)))(p)
+    hess_ref = jax.jit(jax.hessian(lambda p: jnp.sum(by_hand(R, p)[0] ** 3)))(p)
     np.testing.assert_allclose(hess, hess_ref, rtol=0, atol=1e-11)
