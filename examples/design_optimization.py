@@ -37,7 +37,8 @@ warm-started from the last evaluation's equilibria). Optimisers, from the same
 start:
 
 - Levenberg-Marquardt (``optimistix.IndirectLevenbergMarquardt``) on the 24 tip
-  residuals [mm], its Jacobian by forward mode through the solves;
+  residuals [mm], its Jacobian by forward mode through the solves (the program
+  L-BFGS-B uses);
 - scipy's L-BFGS-B on the objective with its gradient from ``jax.jacfwd``;
 - scipy's Nelder-Mead (derivative-free) for comparison.
 
@@ -47,14 +48,16 @@ problem); seconds are wall time with the programs already compiled. The found
 design fits the tips, not the reference's every value: E and the radii trade off
 (the problem is sloppy).
 
-What to expect (``python examples/design_optimization.py``, 2-core CPU shared with
-other jobs): Levenberg-Marquardt reaches J <= 1e-2 mm^2 (tip RMS 0.1 mm) after 136
-solves and 9.4e-7 mm^2 (tip RMS 1 um) after 256 solves (32 evaluations, 1.6 s);
-L-BFGS-B needs 456 solves to reach 1e-2 mm^2, Nelder-Mead 7088 (10 s), and
-Nelder-Mead ends at 6.6e-5 mm^2 after its 2000 evaluations (16000 solves, 21 s), a
-level Levenberg-Marquardt passes after 136 solves. Tracing and compiling the three
-programs (value; residuals and Jacobian; Levenberg-Marquardt step) takes 1-2 min
-on the first run; later runs load them from the persistent compilation cache.
+What to expect (``python examples/design_optimization.py``, 2-core CPU):
+Levenberg-Marquardt reaches J <= 1e-2 mm^2 (tip RMS 0.1 mm) after 136 solves and
+9.4e-7 mm^2 (tip RMS 1 um) after 256 solves (32 evaluations, 0.3 s); L-BFGS-B needs
+456 solves to reach 1e-2 mm^2, Nelder-Mead 7088 (3.8 s), and Nelder-Mead ends at
+6.6e-5 mm^2 after its 2000 evaluations (16000 solves, 7.6 s), a level
+Levenberg-Marquardt passes after 136 solves. The first run takes about 25 s in all,
+most of it tracing and compiling the programs (value; residuals and Jacobian; the
+Levenberg-Marquardt step, which takes the residuals and Jacobian as inputs and
+holds no solves of its own); later runs load them from the persistent compilation
+cache.
 
 Run::
 
@@ -247,19 +250,6 @@ def _residuals_and_jacobian(z, arm, targets, q0):
     return r, jac, q, ok
 
 
-def tip_residuals(z, args):
-    """Tip residuals (24,) [mm] at the unconstrained design ``z``.
-
-    ``args = (arm, targets, q0)``; the aux output is ``(equilibria (8, n_dof),
-    success flags (8,))``. This is the function optimistix's Levenberg-Marquardt
-    minimises (half its sum of squares), differentiating it forward through the
-    statics solves.
-    """
-    arm, targets, q0 = args
-    r, (_, _, q, ok) = _residuals(z, arm, targets, q0)
-    return r, (q, ok)
-
-
 # Levenberg-Marquardt as a trust-region method: each step fits the damping mu of
 # (J^T J + mu I) dz = -J^T r to a trust radius on dz, grown or shrunk by how well the
 # linear model predicted the decrease. This problem is sloppy (the Jacobian's
@@ -272,14 +262,42 @@ def tip_residuals(z, args):
 LM = optx.IndirectLevenbergMarquardt(rtol=1e-12, atol=1e-12)
 
 
-def _lm_init(z, args):
-    f_struct, aux_struct = jax.eval_shape(tip_residuals, z, args)
-    return LM.init(tip_residuals, z, args, {}, f_struct, aux_struct, frozenset())
+def _evaluated(r, jac, aux, z_eval):
+    """The tip residuals as one step of the solver sees them.
+
+    A Gauss-Newton step of optimistix evaluates its function once, with the
+    Jacobian, at the trial point ``state.y_eval``. Given the residuals ``r`` and
+    Jacobian ``jac`` there (from ``residuals_and_jacobian``, the program L-BFGS-B
+    uses too), the affine map ``r + jac (z - z_eval)`` has that value and that
+    Jacobian at ``z_eval``: the step then needs no statics solves of its own, so
+    its program is small and the solves are compiled once.
+    """
+
+    def fn(z, args):
+        return r + jac @ (z - z_eval), aux
+
+    return fn
 
 
-def _lm_step(z, state, args):
-    z, state, _ = LM.step(tip_residuals, z, args, {}, state, frozenset())
-    done, result = LM.terminate(tip_residuals, z, args, {}, state, frozenset())
+def _lm_init(z, r, jac, aux):
+    fn = _evaluated(r, jac, aux, z)
+    f_struct, aux_struct = jax.eval_shape(fn, z, None)
+    return LM.init(fn, z, None, {}, f_struct, aux_struct, frozenset())
+
+
+def _placeholders(n, n_z, q):
+    """Zeros shaped as ``residuals_and_jacobian``'s ``(r, jac, aux)``.
+
+    For ``n`` solves of ``q``'s shape and ``n_z`` design variables: what
+    ``lm_init`` reads (shapes only).
+    """
+    return jnp.zeros(3 * n), jnp.zeros((3 * n, n_z)), (q, jnp.ones(n, dtype=bool))
+
+
+def _lm_step(z, state, r, jac, aux):
+    fn = _evaluated(r, jac, aux, state.y_eval)
+    z, state, _ = LM.step(fn, z, None, {}, state, frozenset())
+    done, result = LM.terminate(fn, z, None, {}, state, frozenset())
     return z, state, done, result
 
 
@@ -296,11 +314,12 @@ def programs():
     warm-starts the 8 solves. Both are ``sorojax.jit`` programs at XLA's default
     level (``tiered=False``: the optimisers call them hundreds of times), so that
     ``sorojax.prepare`` can compile the Jacobian's in a worker thread while the
-    value program compiles and runs. ``lm_init(z, args)`` and ``lm_step(z, state,
-    args)`` are one Levenberg-Marquardt step of optimistix, stepped from Python
-    (``args`` as :func:`tip_residuals`): ``lm_step`` evaluates the residuals at the
-    trial point with their Jacobian (``jax.linearize`` through the solves), accepts
-    or rejects the point and returns ``(z, state, done, result)``.
+    value program compiles and runs. ``lm_init(z, r, jac, aux)`` and
+    ``lm_step(z, state, r, jac, aux)`` are one Levenberg-Marquardt step of
+    optimistix, stepped from Python: given the residuals, Jacobian and ``aux =
+    (equilibria, success flags)`` at the solver's trial point ``state.y_eval``
+    (from ``residuals_and_jacobian``; ``lm_init`` reads only their shapes), the
+    step accepts or rejects that point and returns ``(z, state, done, result)``.
     """
     return (
         sj.jit(_evaluate, tiered=False),
@@ -356,23 +375,24 @@ class Problem:
 def levenberg_marquardt(problem, z0, max_evals=40, J_tol=1e-6):
     """Optimistix's Levenberg-Marquardt on the tip residuals, one step at a time.
 
-    Stepping the solver from Python (``init``/``step``/``terminate``, each step one
-    compiled program) rather than calling ``optx.least_squares`` lets each step
-    warm-start its 8 solves from the last accepted equilibria (passed in ``args``)
-    and record the objective, the solves and the time. Every step is one evaluation
-    (8 solves), accepted or not; stops when J <= ``J_tol`` mm^2, when the solver
+    Stepping the solver from Python (``init``/``step``/``terminate``) rather than
+    calling ``optx.least_squares`` lets each step warm-start its 8 solves from the
+    last accepted equilibria and record the objective, the solves and the time.
+    Every step is one evaluation (8 solves, with the Jacobian, at the solver's
+    trial point), accepted or not; stops when J <= ``J_tol`` mm^2, when the solver
     converges or after ``max_evals`` evaluations.
     """
-    _, _, lm_init, lm_step = programs()
+    _, residuals_and_jacobian, lm_init, lm_step = programs()
     z = jnp.asarray(z0, dtype=float)
-    args = (problem.arm, problem.targets, problem.q)
-    state = lm_init(z, args)
+    state = lm_init(z, *_placeholders(problem.n, z.size, problem.q))
     for _ in range(max_evals):
-        z, state, done, result = lm_step(z, state, args)
+        r, jac, q, ok = residuals_and_jacobian(
+            state.y_eval, problem.arm, problem.targets, problem.q
+        )
+        z, state, done, result = lm_step(z, state, r, jac, (q, ok))
         r = state.f_info.residual  # at the last accepted point
         q, ok = state.aux
         J = problem.record(jnp.sum(r**2) / problem.n, q, ok)
-        args = (problem.arm, problem.targets, problem.q)
         if J <= J_tol or bool(done):
             break
     if result != optx.RESULTS.successful:
@@ -450,9 +470,9 @@ def main(argv=None):
     t = time.perf_counter()
     zeros = jnp.zeros((n, 3))
     sj.prepare(residuals_and_jacobian, jnp.asarray(z0), arm, zeros, q_cold)
-    lm_args = (arm, zeros, q_cold)  # shapes as the optimisation's
-    lm_state = lm_init(jnp.asarray(z0), lm_args)
-    lm_ready = sj.prepare(lm_step, jnp.asarray(z0), lm_state, lm_args)
+    placeholders = _placeholders(n, len(z0), q_cold)  # shapes as the optimisation's
+    lm_state = lm_init(jnp.asarray(z0), *placeholders)
+    lm_ready = sj.prepare(lm_step, jnp.asarray(z0), lm_state, *placeholders)
     # the targets: the reference design's tips (the value program, any targets)
     _, targets, _, ok = evaluate(jnp.asarray(z_of(REFERENCE)), arm, zeros, q_cold)
     ok = np.asarray(ok)  # waits for the result
