@@ -35,7 +35,7 @@ import inspect
 import os
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 import equinox as eqx
 import jax
@@ -306,6 +306,13 @@ class _TieredProgram:
         return fast.postprocess(out)
 
 
+class _Lowered(NamedTuple):
+    """A tiered function's program traced and lowered ahead of its first call."""
+
+    lowered: Any
+    seconds: float  # the trace's and lowering's
+
+
 def _ready(tree) -> bool:
     """Whether every JAX array in ``tree`` has been computed."""
     return all(x.is_ready() for x in jax.tree.leaves(tree) if isinstance(x, jax.Array))
@@ -337,6 +344,12 @@ def jit(fun: Callable, *, tiered: bool = True, long_run: bool = False) -> Callab
     lowers that program here, in the calling thread, and compiles it in a worker
     thread, in whichever tier the call would use (a program that starts at XLA's
     default level, too); the call waits for the compile.
+
+    ``f.lower_first(*args, **kwargs)`` traces and lowers the program here and
+    leaves its compile to the call (in the calling thread, as without it): for a
+    caller that starts another program's trace in a worker thread
+    (``compile_ahead``) once this one's is done, so that the two traces do not
+    take turns on Python's lock. Only where the call would compile in tiers.
     """
     plain = eqx.filter_jit(fun)
     tuned: list = []
@@ -364,8 +377,10 @@ def jit(fun: Callable, *, tiered: bool = True, long_run: bool = False) -> Callab
             return plain(*args, **kwargs)
         mode = compile_mode()
         if not tiers_for(mode):
-            if prepared:  # compiled ahead by prepare (else no signature is taken)
-                compiled = _prepared_program(prepared, _signature(args, kwargs))
+            if prepared:  # by prepare or lower_first (else no signature is taken)
+                compiled = _prepared_program(
+                    prepared, _signature(args, kwargs), _probed_options(long_run)
+                )
                 if compiled is not None:
                     return compiled(*args, **kwargs)
             return full()(*args, **kwargs)
@@ -377,9 +392,34 @@ def jit(fun: Callable, *, tiered: bool = True, long_run: bool = False) -> Callab
             except BaseException:
                 programs.pop(key, None)  # a later call traces again
                 raise
+        if isinstance(program, _Lowered):  # traced and lowered by lower_first
+            try:
+                program = programs[key] = _TieredProgram(
+                    lambda: program.lowered, _probed_options(long_run), program.seconds
+                )
+            except BaseException:
+                programs.pop(key, None)  # a later call traces again
+                raise
         if program is None:
             program = programs[key] = new_program(args, kwargs)
         return program(mode == "tiered", args, kwargs)
+
+    def lower_first(*args, **kwargs) -> None:
+        """Trace and lower ``call(*args, **kwargs)``'s program now.
+
+        The call compiles it (see the ``jit`` docstring). Only at top level.
+        """
+        if not _top_level():
+            return
+        key = _signature(args, kwargs)
+        start = time.perf_counter()
+        if tiers_for(compile_mode()):
+            if key not in programs:
+                lowered = plain.lower(*args, **kwargs)
+                programs[key] = _Lowered(lowered, time.perf_counter() - start)
+        elif key not in prepared:
+            lowered = full().lower(*args, **kwargs)
+            prepared[key] = _Lowered(lowered, time.perf_counter() - start)
 
     def compile_ahead(*args, **kwargs) -> concurrent.futures.Future | None:
         """Start compiling the program of ``call(*args, **kwargs)`` in a thread.
@@ -435,6 +475,7 @@ def jit(fun: Callable, *, tiered: bool = True, long_run: bool = False) -> Callab
     call.programs = programs  # the tiered programs, by signature (for inspection)
     call.prepared = prepared  # programs at the default level compiled by prepare
     call.compile_ahead = compile_ahead
+    call.lower_first = lower_first
     call.prepare = prepare
     # ahead-of-time compilation, as on a filter_jit: f.lower(*args).compile()
     call.lower = lambda *a, **kw: (full() if _top_level() else plain).lower(*a, **kw)
@@ -500,13 +541,20 @@ def _bound_arguments(fn: Callable, args, kwargs, host_only=()) -> dict:
     return {k: v for k, v in call.arguments.items() if k not in host_only}
 
 
-def _prepared_program(prepared: dict, key):
+def _prepared_program(prepared: dict, key, options: dict):
     """The compiled program :func:`jit`'s ``prepare`` made for ``key``, or None.
 
-    Waits for its compile; a failed compile is dropped (the call then compiles as
-    usual and raises there).
+    Waits for its compile, or compiles one that ``lower_first`` lowered (with
+    ``options``); a failed compile is dropped (the call then compiles as usual and
+    raises there).
     """
     program = prepared.get(key)
+    if isinstance(program, _Lowered):
+        try:
+            program = prepared[key] = program.lowered.compile(options or None)
+        except Exception:
+            prepared.pop(key, None)
+            return None
     if isinstance(program, concurrent.futures.Future):
         try:
             program = prepared[key] = program.result()

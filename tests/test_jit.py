@@ -435,6 +435,34 @@ def test_prepare_compiles_the_later_calls_program_in_a_thread(tiered):
     assert len(g.prepared) == 1
 
 
+def test_lower_first_traces_now_and_the_call_compiles_that_lowering(tiered, jax_events):
+    """``lower_first`` traces and lowers a call's program in the calling thread and
+    compiles nothing; the call then compiles that lowering, in its tier (-O0 for a
+    tiered function, the default level for one that starts there), without a
+    second trace, and gives the plain function's values. The same signature again
+    does nothing."""
+    f = sjit.jit(lambda x, n: jnp.cumsum(jnp.sinh(x) * n))
+    x = jnp.linspace(0.0, 1.0, 5)
+    with jax_events("trace") as traced:
+        f.lower_first(jnp.zeros(5), 2)  # values do not matter, shapes do
+        f.lower_first(jnp.ones(5), 2)
+    assert traced.count("<lambda>") == 1 and not tiered
+    with jax_events("trace") as traced:
+        got = f(x, 2)
+    assert "<lambda>" not in traced
+    np.testing.assert_allclose(got, np.cumsum(np.sinh(np.asarray(x)) * 2), 1e-14)
+    assert tiered == [{**sj.compiler_options(), **sjit.FAST_OPTIONS}]
+    (program,) = f.programs.values()
+    assert isinstance(program, sjit._TieredProgram) and program.budget > 0.0
+    g = sjit.jit(lambda x: jnp.cumprod(x + 1.0), tiered=False)
+    g.lower_first(x)
+    assert tiered[1:] == []
+    np.testing.assert_allclose(g(x), np.cumprod(np.asarray(x) + 1.0), rtol=1e-14)
+    g(x + 1.0)  # new values, same program
+    assert tiered[1:] == [sj.compiler_options()]  # at the default level, once
+    assert len(g.prepared) == 1
+
+
 def test_prepare_rejects_other_functions_and_does_nothing_in_a_trace(tiered, arm):
     """Only sorojax's entry points and ``sorojax.jit`` functions can be prepared (a
     TypeError names the fix), with the arguments their call takes; inside a user's
@@ -580,10 +608,17 @@ def test_top_level_simulate_computes_efforts_in_a_program_of_their_own(
     }
     assert len(new) == 1, f"{len(new)} programs for the efforts (compiled ahead: 1)"
     (program,) = new.values()
-    assert isinstance(program, sjit._TieredProgram) and program.spent > 0.0
+    # (its call's run time counts toward its budget only where the trajectory was
+    # ready at the call: here the integration may still be running)
+    assert isinstance(program, sjit._TieredProgram)
     # the integration starts at the default level (tiered=False: its one call may
-    # run long), so it has no tiered programs
+    # run long), so it has no tiered programs; it was traced and lowered first
+    # (lower_first), before the efforts' trace started in the thread
     assert not simulate_module._simulate.programs
+    compiled = sjit.eqx._compile_utils.Compiled
+    assert any(
+        isinstance(p, compiled) for p in simulate_module._simulate.prepared.values()
+    )
     assert top.efforts.shape == (3, 1) and top.u.shape == (3, 1)
     for a, b in zip((top.q, top.qd, top.u, top.efforts), inside, strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-13)
