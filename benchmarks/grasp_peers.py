@@ -10,7 +10,11 @@ between 0.4 and 0.8 s.
   contacts' tangent in W) at rtol 1e-3, atol 1e-6 (``--solver``, ``--rtol``,
   ``--atol``; the example's own Tsit5 at 1e-4 / 1e-7 takes 2.3x the steps). Its
   first call (trace, compile and one run; persistent compilation cache off) and its
-  warm calls are timed; compile = first call - warm median.
+  warm calls are timed; compile = first call - warm median. These programs are
+  compiled at XLA's default level (``_common.py``: ``SOROJAX_COMPILE=full``) and
+  after the reference's; a user's first call, the example's own
+  ``grasp(gripper(), T, t1)`` in a fresh process in the default compile tiers, is
+  timed apart (``sorojax_fresh_first_call_s``, ``--repeats`` processes).
 * **MuJoCo** (the ``mujoco`` package; MJCF written here as a string):
 
   - each finger a ``<composite type="cable">`` of ``--segments`` capsules (default 8:
@@ -353,6 +357,38 @@ def sorojax_part(T, t1, solver="rosenbrock_euler", dt=2e-3, rtol=1e-3, atol=1e-6
     return res, lambda: ex.grasp(lk, T, t1, **kw)
 
 
+_FRESH = """
+import os, sys, time
+sys.path.insert(0, {examples!r})
+import jax
+jax.config.update("jax_enable_x64", True)
+jax.config.update("jax_enable_compilation_cache", False)
+import sorojax as sj
+sj.set_runtime_flags()
+import grasp as ex
+lk = ex.gripper()
+t0 = time.perf_counter()
+jax.block_until_ready(ex.grasp(lk, {T!r}, {t1!r}))
+print(time.perf_counter() - t0)
+"""
+
+
+def fresh_first_call(T, t1, repeats):
+    """``examples.grasp.grasp``'s first call as a user meets it: a fresh process
+    each, sorojax's default compile tiers (``SOROJAX_COMPILE`` unset), JAX's
+    persistent cache off, the example's own settings. Seconds, one per process."""
+    import subprocess
+
+    env = {k: v for k, v in os.environ.items() if k != "SOROJAX_COMPILE"}
+    code = _FRESH.format(examples=str(ROOT / "examples"), T=T, t1=t1)
+    out = []
+    for _ in range(repeats):
+        r = subprocess.run([sys.executable, "-c", code], env=env, check=True,
+                           capture_output=True, text=True)  # fmt: skip
+        out.append(float(r.stdout.split()[-1]))
+    return out
+
+
 def step_sweep(T, t1, solver, dts, ref):
     """sorojax's constant steps ``dts``: the largest whose ball ends within 1 mm.
 
@@ -514,6 +550,9 @@ def main(argv=None):
     p = scene()
     mj, m, U = mujoco_part(p, a.tension, a.t1, a.segments, a.dts, a.impratio)
     dt = a.dt or None
+    # a user's first call (fresh processes, default tiers), before this process
+    # compiles anything of sorojax's
+    fresh = fresh_first_call(a.tension, a.t1, a.repeats)
     # the accuracy reference: adaptive ROS34PW2 at rtol 1e-4 (one run)
     ref, _ = sorojax_part(a.tension, a.t1, "ros34pw2", None, 1e-4, 1e-7)
     sj_, run_sj = sorojax_part(a.tension, a.t1, a.solver, dt, a.rtol, a.atol)
@@ -554,6 +593,7 @@ def main(argv=None):
         "against MuJoCo",
         t1=a.t1, tension=a.tension, scene=p, sorojax=sj_, sorojax_reference=ref,
         sorojax_largest_step=largest, mujoco=mj, timing=tm, batch=batch,
+        sorojax_fresh_first_call_s=fresh,
         environment=env | {"load_average_at_end": list(os.getloadavg())},
     )  # fmt: skip
     OUT.parent.mkdir(parents=True, exist_ok=True)
@@ -608,6 +648,13 @@ def _table(res):
             f"{big['ratio_median_of_rounds']:.2f}x MuJoCo's rollout "
             f"({min(big['round_ratios']):.2f}-{max(big['round_ratios']):.2f}x)"
         )
+    fresh = res["sorojax_fresh_first_call_s"]
+    print(
+        "sorojax's first call in a fresh process (the example as a user runs it: "
+        "default compile tiers, cache off): "
+        + ", ".join(f"{x:.1f}" for x in fresh)
+        + f" s (median {statistics.median(fresh):.1f} s)"
+    )
     b = res["batch"]
     if b:
         print(f"{b['cases']} grasps: sorojax vmap {b['sorojax_cases_per_s']:.1f} "
