@@ -1,9 +1,12 @@
 """System identification: E, damping and a tip mass from a noisy tip trajectory.
 
 What this example teaches: how to fit a model's physical parameters to measured
-motion with optimistix's Levenberg-Marquardt (``optx.least_squares``), its Jacobian
-taken by forward-mode autodiff through ``sorojax.simulate``, and how to read the
-fit's uncertainty from that Jacobian.
+motion with optimistix's Levenberg-Marquardt, its Jacobian taken by forward-mode
+autodiff through ``sorojax.simulate``, and how to read the fit's uncertainty from
+that Jacobian. The solver is stepped from Python (``init``, ``step`` and
+``terminate``, as ``optx.least_squares`` runs them) and each step is given the
+residuals and Jacobian at its trial point by the program that makes the data: the
+integration, with its tangents, is compiled once.
 
 The robot: a soft rod (0.5 m, radius 1 cm, rho 1000 kg/m^3, clamped horizontally
 along x, gravity -z) carrying a small rigid body at its tip (a 2 x 2 cm cylinder on
@@ -157,41 +160,86 @@ def tip_and_jacobian(log_p, ts, dt):
     return _compiled()(log_p, jnp.asarray(ts, dtype=float), jnp.asarray(dt, float))
 
 
-def residuals(log_p, args):
-    """Tip misfit in noise units ``(2 n,)``: ``(tip(log_p) - measured) / sigma``.
+LM = optx.LevenbergMarquardt(rtol=1e-6, atol=1e-6)
+"""The solver: it stops when both the step in the log parameters and the change of
+the residuals are below 1e-6 (relative, or absolute: 1e-6 of the noise), far below
+the fit's standard deviations."""
 
-    ``args = (ts, measured (n, 2) [m], sigma (2,) [m], dt [s])``.
+
+def _evaluated(r, jac, x_eval):
+    """The residuals as one step of the solver sees them.
+
+    A Levenberg-Marquardt step of optimistix evaluates its function once, with the
+    Jacobian, at the trial point ``state.y_eval``. Given the residuals ``r`` and
+    their Jacobian ``jac`` there (from :func:`tip_and_jacobian`, the program that
+    also makes the data and the uncertainty), the affine map ``r + jac (x -
+    x_eval)`` has that value and that Jacobian at ``x_eval``: the step's program
+    then holds no integration, and the integration is compiled once.
     """
-    ts, measured, sigma, dt = args
-    return ((tip_xz(log_p, ts, dt) - measured) / sigma[None, :]).ravel()
+
+    def fn(x, args):
+        return r + jac @ (x - x_eval), None
+
+    return fn
+
+
+def _lm_init(x, r, jac):
+    fn = _evaluated(r, jac, x)
+    f_struct, aux_struct = jax.eval_shape(fn, x, None)
+    state = LM.init(fn, x, None, {}, f_struct, aux_struct, frozenset())
+    return state, *LM.terminate(fn, x, None, {}, state, frozenset())
+
+
+def _lm_step(x, state, r, jac):
+    fn = _evaluated(r, jac, state.y_eval)
+    new_x, state, _ = LM.step(fn, x, None, {}, state, frozenset())
+    done, result = LM.terminate(fn, x, None, {}, state, frozenset())
+    finite = jnp.all(jnp.isfinite(x))
+    result = optx.RESULTS.where(finite, result, optx.RESULTS.nonfinite)
+    return new_x, state, done, result
 
 
 @functools.cache
-def _fit_program():
-    @functools.partial(
-        jax.jit, static_argnames="max_steps", compiler_options=sj.compiler_options()
-    )
-    def fit(x0, args, max_steps):
-        # The Jacobian of the residuals: forward mode through simulate (linearize).
-        solver = optx.LevenbergMarquardt(rtol=1e-6, atol=1e-6)
-        sol = optx.least_squares(
-            residuals, solver, x0, args, max_steps=max_steps, throw=False
-        )
-        return sol.value, sol.result, sol.stats["num_steps"]
+def _fit_programs():
+    # equinox's jit: the solver's state holds static parts (the step's jaxpr)
+    return sj.jit(_lm_init), sj.jit(_lm_step)
 
-    return fit
+
+def residuals_and_jacobian(log_p, ts, measured, sigma, dt):
+    """Tip misfit in noise units ``(2 n,)`` and its Jacobian ``(2 n, 3)``.
+
+    ``(tip(log_p) - measured) / sigma`` (``measured`` ``(n, 2)`` [m], ``sigma``
+    ``(2,)`` [m]) and its derivative w.r.t. ``log_p``, from
+    :func:`tip_and_jacobian`.
+    """
+    tip, J = (np.asarray(a) for a in tip_and_jacobian(log_p, ts, dt))
+    r = ((tip - measured) / sigma[None, :]).ravel()
+    return r, (J / sigma[None, :, None]).reshape(r.size, -1)
 
 
 def fit(x0, ts, measured, sigma, dt, max_steps=40):
     """Levenberg-Marquardt from ``x0``: ``(log parameters, result code, steps)``.
 
-    One compiled program (the whole loop); ``max_steps`` evaluations of the
-    residuals with their Jacobian at most. It stops when both the step in the log
-    parameters and the change of the residuals are below 1e-6 (relative, or
-    absolute: 1e-6 of the noise), far below the fit's standard deviations.
+    optimistix's solver stepped from Python (``init``, ``step``, ``terminate``, as
+    ``optx.least_squares`` runs them), each step given the residuals and Jacobian
+    at its trial point by :func:`tip_and_jacobian`: ``max_steps`` evaluations at
+    most. It stops when both the step in the log parameters and the change of the
+    residuals are below 1e-6 (relative, or absolute: 1e-6 of the noise), far below
+    the fit's standard deviations.
     """
-    args = tuple(jnp.asarray(a, dtype=float) for a in (ts, measured, sigma, dt))
-    return _fit_program()(jnp.asarray(x0, dtype=float), args, max_steps)
+    lm_init, lm_step = _fit_programs()
+    measured, sigma = np.asarray(measured, float), np.asarray(sigma, float)
+    x = jnp.asarray(x0, dtype=float)
+    n_r = measured.size
+    state, done, result = lm_init(x, jnp.zeros(n_r), jnp.zeros((n_r, x.shape[0])))
+    steps = 0
+    while not bool(done) and result == optx.RESULTS.successful and steps < max_steps:
+        r, jac = residuals_and_jacobian(state.y_eval, ts, measured, sigma, dt)
+        x, state, done, result = lm_step(x, state, jnp.asarray(r), jnp.asarray(jac))
+        steps += 1
+    if result == optx.RESULTS.successful and not bool(done):
+        result = optx.RESULTS.nonlinear_max_steps_reached
+    return x, result, steps
 
 
 def main(argv=None):
@@ -204,7 +252,7 @@ def main(argv=None):
     ap.add_argument("--out", default=".", help="folder for the PNG")
     ap.add_argument("--overwrite", action="store_true", help="replace an old PNG")
     args = ap.parse_args(argv)
-    sj.enable_compilation_cache()  # later runs load the compiled program
+    sj.enable_compilation_cache()  # later runs load the compiled programs
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     path = out / "system_identification.png"
@@ -223,7 +271,7 @@ def main(argv=None):
     measured = clean + sigma * rng.standard_normal(clean.shape)
     seconds_data = time.perf_counter() - t
 
-    # The fit: optimistix's Levenberg-Marquardt, one compiled program.
+    # The fit: optimistix's Levenberg-Marquardt, stepped from Python.
     t = time.perf_counter()
     x, result, steps = fit(x0, ts, measured, sigma, args.dt)
     x, steps = np.asarray(x), int(steps)

@@ -2,8 +2,8 @@
 
 The example's ``main(argv)`` runs in this process on a short record (1.5 s, 31
 samples, constant step 20 ms): one compiled program (tip trajectory and its
-forward-mode Jacobian) serves the data, the uncertainty and the checks below, and
-one the Levenberg-Marquardt fit (optimistix).
+forward-mode Jacobian) serves the data, every step of the Levenberg-Marquardt fit
+(optimistix's solver, stepped from Python), the uncertainty and the checks below.
 """
 
 import math
