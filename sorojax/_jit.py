@@ -307,7 +307,7 @@ class _TieredProgram:
 
 
 class _Lowered(NamedTuple):
-    """A tiered function's program traced and lowered ahead of its first call."""
+    """A program traced and lowered by ``lower_first``, compiled by its call."""
 
     lowered: Any
     seconds: float  # the trace's and lowering's
@@ -349,7 +349,7 @@ def jit(fun: Callable, *, tiered: bool = True, long_run: bool = False) -> Callab
     leaves its compile to the call (in the calling thread, as without it): for a
     caller that starts another program's trace in a worker thread
     (``compile_ahead``) once this one's is done, so that the two traces do not
-    take turns on Python's lock. Only where the call would compile in tiers.
+    take turns on Python's lock. Only at top level.
     """
     plain = eqx.filter_jit(fun)
     tuned: list = []
@@ -473,7 +473,7 @@ def jit(fun: Callable, *, tiered: bool = True, long_run: bool = False) -> Callab
         return future
 
     call.programs = programs  # the tiered programs, by signature (for inspection)
-    call.prepared = prepared  # programs at the default level compiled by prepare
+    call.prepared = prepared  # at the default level: by prepare, or lower_first
     call.compile_ahead = compile_ahead
     call.lower_first = lower_first
     call.prepare = prepare
