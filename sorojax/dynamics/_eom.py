@@ -141,15 +141,22 @@ def lazy_kinematics(data: LinkageData, q, qd, rates: PointRates):
     return kin_fn
 
 
+def _added_mass(linkage: Linkage, data: LinkageData, idx) -> Array | None:
+    """The points ``idx``'s added-mass matrices times their weights (None: none)."""
+    if linkage.added_mass is None:
+        return None
+    return data.point_weight[idx, None, None] * linkage.added_mass[idx]
+
+
 def mass_matrix(linkage: Linkage, data: LinkageData, rates: PointRates) -> Array:
     """``M`` from the chain points' Jacobians, the linkage's added mass included."""
     row = rows_of(data, rates)
     M = _mass_from_J(data, rates.J, row)
-    if linkage.added_mass is None:
-        return M
     idx = np.asarray(data.mass_points, dtype=int)
+    Ma = _added_mass(linkage, data, idx)
+    if Ma is None:
+        return M
     J_m = rates.J[row[idx]]
-    Ma = data.point_weight[idx, None, None] * linkage.added_mass[idx]
     return M + jnp.einsum("pai,pab,pbj->ij", J_m, Ma, J_m)
 
 
@@ -189,8 +196,8 @@ def mass_and_force(
         Mw, eta[idx], rates.etadot[rows]
     )
     M = mass_matrix(linkage, data, rates)
-    if linkage.added_mass is not None:
-        Ma = data.point_weight[idx, None, None] * linkage.added_mass[idx]
+    Ma = _added_mass(linkage, data, idx)
+    if Ma is not None:
         W_m = W_m - jnp.einsum("pab,pb->pa", Ma, rates.etadot[rows])
     W = point_wrenches(linkage, t, g)  # gravity: with the inertial forces
     if linkage.contact is not None:
