@@ -31,9 +31,9 @@ def test_identification_recovers_parameters_within_noise(tmp_path, examples_opti
     steps: a smooth function of the parameters) with step 1e-4 in log p; truncation
     ~(1e-4)^2 times the third derivative (measured 7e-9 of the column's largest
     entry), rounding ~1e-15 m / 1e-4: tolerance 1e-6 of the column's largest entry.
-    A second run must refuse to overwrite the PNG. The example's programs compile
-    at XLA's default level (``examples_optimised``): its fit runs, not compiles, most
-    of the time.
+    A second run must refuse to overwrite the PNG. The example's trajectory program
+    compiles at XLA's default level (``examples_optimised``): the data, the fit's
+    steps and the checks run it some 15 times.
     """
     ex = _load("system_identification")
     res = ex.main([*QUICK, "--out", str(tmp_path)])
