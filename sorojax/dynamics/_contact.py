@@ -406,6 +406,29 @@ def _join_indices(parts):
     return jnp.concatenate([jnp.asarray(p) for p in parts])
 
 
+def _add_rows(W, points, values):
+    """``W.at[points].add(values)``, by gathers where ``points`` is static.
+
+    XLA's CPU backend runs a scatter as a loop over its rows (a thousand contact
+    samples: a thousand iterations of the evaluation's program); with the indices
+    known, each point's ``j``-th value is one gather from ``values`` (``j`` up to
+    the most values a point receives), summed in the order given.
+    """
+    if not isinstance(points, np.ndarray):
+        return W.at[points].add(values)
+    order = np.argsort(points, kind="stable")
+    ranked = np.arange(len(points)) - np.searchsorted(points[order], points[order])
+    rank = np.empty(len(points), int)
+    rank[order] = ranked
+    padded = jnp.concatenate([values, jnp.zeros_like(values[:1])])
+    for j in range(int(rank.max()) + 1 if len(points) else 0):
+        src = np.full(W.shape[0], len(points))
+        sel = np.flatnonzero(rank == j)
+        src[points[sel]] = sel
+        W = W + padded[src]
+    return W
+
+
 def _take(static, idx):
     """``static[idx]``: a static table at static or traced indices."""
     return static[idx] if isinstance(idx, np.ndarray) else jnp.asarray(static)[idx]
@@ -737,7 +760,7 @@ def _contact(linkage: Linkage, t, g, eta):
         x = jnp.concatenate([x for _, x, _ in loads])
         f = jnp.concatenate([f for _, _, f in loads])
         R, p = g[points, :3, :3], g[points, :3, 3]
-        W = W.at[points].add(_point_wrenches(R, p, x, f))
+        W = _add_rows(W, points, _point_wrenches(R, p, x, f))
     if pairs:
         W = jnp.where(overflow, jnp.nan, W)
     return W, rows, labels, overflow

@@ -20,6 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from ..kinematics import _leaves
 from ..kinematics._recursion import (
     chain_layout,
     chain_terms,
@@ -64,6 +65,9 @@ def leaf_wrenches(data: LinkageData, lay, kl, W):
     Wc = W[lay.core]
     if kl is None:
         return Wc, jnp.zeros(data.n_dof, W.dtype)
+    if isinstance(kl, _leaves.LeafRecord):  # many leaves: component by component
+        y, F = _leaves.leaf_wrenches(data, kl, W[np.asarray(data.leaf_points)])
+        return Wc + leaf_sums(lay, y), F
     y = from_step_end(kl.R, kl.p, W[np.asarray(data.leaf_points)])
     z = tangent_transpose_apply(kl.T, y)
     F = step_jacobians_transpose(data, kl, z, st=data.leaf_steps)

@@ -39,6 +39,7 @@ from jaxtyping import Array, Float
 
 from ..lie import Ad, Ad_inv, ad
 from ..model._precompute import LinkageData
+from . import _leaves
 from ._step import ad_apply as _ad_apply
 from ._step import ad_apply_many as _ad_apply_many
 from ._step import ad_transpose_apply as _ad_transpose_apply
@@ -97,7 +98,7 @@ def steps(data: LinkageData, q, qd=None, st=None, many: bool = True) -> Steps:
     cheaper for a single tangent or cotangent (the dynamics).
     """
     st = data.steps if st is None else st
-    xi = jnp.einsum("szan,n->sza", st.Phi_z, q) + st.xi_ref_z
+    xi = st.strains(q)
     if st.order == 6:
         return _steps6(st, xi, qd, many)
     xi1, xi2 = xi[:, 0], xi[:, 1]
@@ -106,7 +107,7 @@ def steps(data: LinkageData, q, qd=None, st=None, many: bool = True) -> Steps:
     if qd is None:
         R, p, T = (exp_and_tangent_many if many else jax.vmap(exp_and_tangent))(Omega)
         return Steps(R, p, T, xi1, xi2)
-    xid = jnp.einsum("szan,n->sza", st.Phi_z, qd)
+    xid = st.strains(qd, ref=False)
     Od = _omega_rate4(st, xi1, xi2, xid)
     Odd = 2.0 * c * _ad_apply(xid[:, 0], xid[:, 1])
     (R, p, T), (_, _, Td) = jax.vmap(
@@ -121,7 +122,7 @@ def _steps6(st, xi, qd, many: bool = True) -> Steps:
     if qd is None:
         R, p, T = (exp_and_tangent_many if many else jax.vmap(exp_and_tangent))(Omega)
         return Steps(R, p, T, None, None, xi=xi)
-    xid = jnp.einsum("szan,n->sza", st.Phi_z, qd)
+    xid = st.strains(qd, ref=False)
 
     def rates(x):
         return jax.jvp(lambda y: magnus6(y, st.h), (x,), (xid,))[1]
@@ -139,7 +140,7 @@ def step_jacobians(data: LinkageData, k: Steps, V, st=None) -> Array:
     ``st``: the steps ``k`` were made from (default ``data.steps``).
     """
     st = data.steps if st is None else st
-    P = st.Phi_z if V is None else jnp.einsum("szan,nk->szak", st.Phi_z, V)
+    P = st.basis(V)
     if st.order == 6:
         dO = magnus6_apply(k.xi, st.h, jnp.swapaxes(P, -1, -2))
         return jnp.swapaxes(dO, -1, -2)
@@ -155,7 +156,7 @@ def step_rates(st, k: Steps, qd) -> Array:
     :func:`step_jacobians` of the one column ``qd``, by cross products (as
     :func:`steps` forms its rates) instead of a 6 x 6 matrix per step.
     """
-    xid = jnp.einsum("szan,n->sza", st.Phi_z, qd)
+    xid = st.strains(qd, ref=False)
     if st.order == 6:
         return magnus6_apply(k.xi, st.h, xid[..., None, :])[..., 0, :]
     return _omega_rate4(st, k.xi1, k.xi2, xid)
@@ -186,11 +187,11 @@ def step_jacobians_transpose(data: LinkageData, k: Steps, z, st=None) -> Array:
     st = data.steps if st is None else st
     if st.order == 6:
         Z = magnus6_apply_transpose(k.xi, st.h, z)
-        return jnp.einsum("szan,sza->n", st.Phi_z, Z)
+        return st.basis_transpose(Z)
     h, c = st.h[:, None], st.c[:, None]
     Z1 = 0.5 * h * z - c * _ad_transpose_apply(k.xi2, z)
     Z2 = 0.5 * h * z + c * _ad_transpose_apply(k.xi1, z)
-    return jnp.einsum("szan,sza->n", st.Phi_z, jnp.stack([Z1, Z2], axis=1))
+    return st.basis_transpose(jnp.stack([Z1, Z2], axis=1))
 
 
 class ChainLayout(NamedTuple):
@@ -663,6 +664,8 @@ def point_jacobians(data: LinkageData, pr: PointRates) -> Array:
         return pr.J
     lay = chain_layout(data)
     kl = pr.leaves
+    if isinstance(kl, _leaves.LeafRecord):
+        kl = Steps(*_leaves.as_steps(kl))
     rel = kl.T @ step_jacobians(data, kl, None, st=data.leaf_steps)
     return with_leaves(lay, pr.J, _Ad_inv(kl.R, kl.p) @ (pr.J[lay.leaf_row] + rel))
 
@@ -674,6 +677,11 @@ def point_rates(data: LinkageData, q, qd) -> PointRates:
     costs its step, its pose and its twist.
     """
     g, J, (eta, etadot), (_, _, lay) = _tree_pass(data, q, None, qd, core_only=True)
+    if _leaves.applies(data):  # many leaves: component by component
+        g_l, eta_l, rec = _leaves.leaf_rates(data, lay, q, qd, g, eta)
+        return PointRates(
+            with_leaves(lay, g, g_l), with_leaves(lay, eta, eta_l), J, etadot, rec
+        )
     kl = leaf_steps(data, q, many=False)  # in dynamics: derivatives of one tangent
     if kl is None:
         return PointRates(g, eta, J, etadot, None)

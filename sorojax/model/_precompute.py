@@ -117,6 +117,11 @@ class StepData(eqx.Module):
     exactly, at either order), then the steps of its divisions. Batching them keeps
     the traced program's size independent of the number of divisions and joints.
 
+    The chain's steps store the bases step first (``Phi_z``, ``xi_ref_z``); the
+    leaves' (:mod:`sorojax.kinematics._leaves`, many contact samples) store them
+    with the step axis last (``Phi_t``, ``xi_ref_t``); :meth:`strains`,
+    :meth:`basis` and :meth:`basis_transpose` read either.
+
     Attributes:
         order: Magnus order of every step, 4 (2 Zanna nodes) or 6 (3 Gauss nodes),
             see :func:`magnus_order`.
@@ -124,15 +129,48 @@ class StepData(eqx.Module):
         c: (n_steps,) 4th-order commutator weights ``sqrt(3) h^2 / 12`` (0 for
             joints; unused by 6th-order steps).
         Phi_z: (n_steps, n_nodes, 6, n_dof) bases at the Magnus nodes, zero outside
-            the step's own columns.
-        xi_ref_z: (n_steps, n_nodes, 6) reference strains at the Magnus nodes.
+            the step's own columns (None for leaves).
+        xi_ref_z: (n_steps, n_nodes, 6) reference strains at the Magnus nodes (None
+            for leaves).
+        Phi_t: the same bases as an ``(n_dof, n_nodes * 6 * n_steps)`` matrix
+            (leaves only, else None).
+        xi_ref_t: (n_nodes, 6, n_steps) the reference strains (leaves only).
     """
 
     order: int = eqx.field(static=True)
     h: Float[Array, " n_steps"]
     c: Float[Array, " n_steps"]
-    Phi_z: Float[Array, "n_steps n_nodes 6 n_dof"]
-    xi_ref_z: Float[Array, "n_steps n_nodes 6"]
+    Phi_z: Float[Array, "n_steps n_nodes 6 n_dof"] | None = None
+    xi_ref_z: Float[Array, "n_steps n_nodes 6"] | None = None
+    Phi_t: Float[Array, "n_dof n_basis"] | None = None
+    xi_ref_t: Float[Array, "n_nodes 6 n_steps"] | None = None
+
+    def strains(self, x, ref: bool = True):
+        """Strains ``(n_steps, n_nodes, 6)`` at the nodes for coordinates ``x``.
+
+        ``ref``: with the reference strains (``False``: the rates for ``x = qd``).
+        """
+        if self.Phi_z is not None:
+            xi = jnp.einsum("szan,n->sza", self.Phi_z, x)
+            return xi + self.xi_ref_z if ref else xi
+        xi = (x @ self.Phi_t).reshape(self.xi_ref_t.shape)
+        return jnp.transpose(xi + self.xi_ref_t if ref else xi, (2, 0, 1))
+
+    def basis(self, V=None):
+        """``Phi_z`` ``(n_steps, n_nodes, 6, n_dof)``, or ``Phi_z V`` (k columns)."""
+        if self.Phi_z is not None:
+            return (
+                self.Phi_z if V is None else jnp.einsum("szan,nk->szak", self.Phi_z, V)
+            )
+        P = self.Phi_t if V is None else V.T @ self.Phi_t
+        P = P.reshape((P.shape[0],) + self.xi_ref_t.shape)
+        return jnp.transpose(P, (3, 1, 2, 0))
+
+    def basis_transpose(self, Z):
+        """``sum_s Phi_z[s]^T Z[s]`` for node covectors ``Z`` (n_steps, n_nodes, 6)."""
+        if self.Phi_z is not None:
+            return jnp.einsum("szan,sza->n", self.Phi_z, Z)
+        return self.Phi_t @ jnp.transpose(Z, (1, 2, 0)).reshape(-1)
 
 
 def _step_data(links: list, n: int, order: int, leaves: bool = False) -> StepData:
@@ -157,8 +195,13 @@ def _step_data(links: list, n: int, order: int, leaves: bool = False) -> StepDat
                 continue
             h.append(dh)
             c.append(_C * dh * dh)
-            Phi_z.append(jnp.zeros((m, nz, 6, n)).at[..., o : o + dd.n_dof].set(dP))
-            xr.append(dx)
+            if leaves:  # the step axis last (StepData.Phi_t)
+                dP = jnp.transpose(dP, (3, 1, 2, 0))
+                Phi_z.append(jnp.zeros((n, nz, 6, m)).at[o : o + dd.n_dof].set(dP))
+                xr.append(jnp.transpose(dx, (1, 2, 0)))
+            else:
+                Phi_z.append(jnp.zeros((m, nz, 6, n)).at[..., o : o + dd.n_dof].set(dP))
+                xr.append(dx)
     if not h:
         return StepData(
             order=order,
@@ -166,6 +209,14 @@ def _step_data(links: list, n: int, order: int, leaves: bool = False) -> StepDat
             c=jnp.zeros(0),
             Phi_z=jnp.zeros((0, nz, 6, n)),
             xi_ref_z=jnp.zeros((0, nz, 6)),
+        )
+    if leaves:
+        return StepData(
+            order=order,
+            h=jnp.concatenate(h),
+            c=jnp.concatenate(c),
+            Phi_t=jnp.concatenate(Phi_z, axis=-1).reshape(n, -1),
+            xi_ref_t=jnp.concatenate(xr, axis=-1),
         )
     return StepData(
         order=order,

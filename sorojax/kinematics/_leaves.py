@@ -1,0 +1,233 @@
+"""The leaves' steps in the dynamics, computed component by component.
+
+A leaf (a contact sample off the kinematic chain, :mod:`sorojax.model._layout`) is one
+Magnus step from its chain point: its pose, its twist and, backwards, the generalised
+force of a wrench on it need that step's ``exp(Omega)`` and tangent ``T(Omega)``
+(:mod:`sorojax.kinematics._recursion`, :func:`~sorojax.kinematics._recursion.
+point_rates`, :func:`~sorojax.dynamics._wrench_recursion.leaf_wrenches`). With many
+leaves (a rod sampled every few millimetres) this is most of an evaluation. Here the
+same formulas run on the leaves stored component by component: every quantity is a
+row of shape ``(n_leaves,)`` (structure of arrays), so each XLA kernel is a loop over
+the leaves, vectorised along them, instead of one over ``(n, 3, 3)`` and ``(n, 6, 6)``
+stacks whose minor axes are three or six numbers long.
+
+XLA's CPU fusion computes each output row of a loop kernel by itself and copies an
+elementwise producer into every kernel that reads it, except an expensive one (a
+division, a square root): shared terms (the exp's coefficients, the step's twist,
+the rotated wrench) would be recomputed for every row that reads them. :func:`_kept`
+divides such a term by a one computed at run time, which makes XLA compute it once
+and store it (the quotient is exact: ``x / 1 = x``).
+
+For 4th-order steps (a linkage whose bases are below quartic,
+:func:`~sorojax.model._precompute.magnus_order`) and at least :data:`MIN_LEAVES`
+leaves; otherwise the stacked kernels of :mod:`sorojax.kinematics._recursion` serve.
+The values agree with those to rounding (tests/test_leaves.py).
+"""
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array
+
+from ._step import _SERIES, _SMALL
+
+MIN_LEAVES = 32
+"""The fewest leaves for which the dynamics uses these kernels."""
+
+
+class LeafRecord(NamedTuple):
+    """The leaves' steps, component by component (rows over the leaves).
+
+    ``R`` ``(3, 3, n)`` and ``p`` ``(3, n)``: exp(Omega); ``Ts``, ``Q`` ``(3, 3, n)``:
+    the blocks of T(Omega) = [[Ts, 0], [Q, Ts]]; ``xi`` ``(2, 6, n)``: the strains at
+    the step's Zanna points; ``one``: ``(n,)`` ones computed at run time
+    (:func:`_kept`).
+    """
+
+    R: Array
+    p: Array
+    Ts: Array
+    Q: Array
+    xi: Array
+    one: Array
+
+
+def applies(data) -> bool:
+    """Whether the dynamics poses the leaves of ``data`` here (static)."""
+    st = data.leaf_steps
+    return st is not None and st.order == 4 and len(data.leaf_points) >= MIN_LEAVES
+
+
+def _kept(x, one):
+    """``x`` (an array or nested lists of ``(n,)`` rows) stacked and stored.
+
+    Dividing by ``one`` (ones computed at run time) makes XLA compute the stack in
+    one kernel and keep it (see the module docstring); ``x / 1 = x`` exactly.
+    """
+    x = _stacked(x)
+    return x / one.reshape((1,) * (x.ndim - 1) + one.shape)
+
+
+def _stacked(x):
+    if isinstance(x, list | tuple):
+        return jnp.stack([_stacked(y) for y in x])
+    return x
+
+
+def _cross(a, b):
+    return [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+
+
+def _mat_vec(M, x, transpose: bool = False):
+    """``M x`` (or ``M^T x``) for a ``(3, 3, n)`` stack and rows ``x``."""
+    if transpose:
+        return [M[0, i] * x[0] + M[1, i] * x[1] + M[2, i] * x[2] for i in range(3)]
+    return [M[i, 0] * x[0] + M[i, 1] * x[1] + M[i, 2] * x[2] for i in range(3)]
+
+
+def _add(a, b):
+    return [x + y for x, y in zip(a, b, strict=True)]
+
+
+def _exp_and_tangent(Omega, one):
+    """``R, p, Ts, Q`` of :func:`~sorojax.kinematics._step.exp_and_tangent`.
+
+    ``Omega``: the twists ``(6, n)``; returns ``(3, 3, n)``, ``(3, n)``, ``(3, 3, n)``,
+    ``(3, 3, n)``. The same closed forms (W = hat(w), V = hat(v)) and Taylor series
+    (by Horner's rule, each coefficient's own).
+    """
+    w, v = Omega[:3], Omega[3:]
+    th2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
+    small = th2 < _SMALL
+    t2 = jnp.where(small, 1.0, th2)
+    t = jnp.sqrt(t2)
+    sc = _kept([jnp.sin(t), jnp.cos(t)], one)
+    s, c = sc[0], sc[1]
+    closed = (
+        s / t,
+        (1.0 - c) / t2,
+        (t - s) / (t2 * t),
+        (t2 / 2 + c - 1.0) / (t2 * t2),
+        (2.0 * t - 3.0 * s + t * c) / (2.0 * t2 * t2 * t),
+    )
+    coef = []
+    for col, closed_form in zip(_SERIES.T, closed, strict=True):
+        series = jnp.full_like(th2, col[-1])
+        for ck in col[-2::-1]:
+            series = series * th2 + ck
+        coef.append(jnp.where(small, series, closed_form))
+    wv = w[0] * v[0] + w[1] * v[1] + w[2] * v[2]
+    k = _kept(coef + [th2, wv] + _cross(w, v), one)
+    A, B, C, D, F, th2, wv = (k[i] for i in range(7))
+    wxv = k[7:]
+    zero = jnp.zeros_like(th2)
+    W = [[zero, -w[2], w[1]], [w[2], zero, -w[0]], [-w[1], w[0], zero]]
+    V = [[zero, -v[2], v[1]], [v[2], zero, -v[0]], [-v[1], v[0], zero]]
+
+    def eye(i, j, x=1.0):
+        return x if i == j else 0.0
+
+    W2 = [[w[i] * w[j] - eye(i, j, th2) for j in range(3)] for i in range(3)]
+    R = [[eye(i, j) + A * W[i][j] + B * W2[i][j] for j in range(3)] for i in range(3)]
+    Ts = [[eye(i, j) + B * W[i][j] + C * W2[i][j] for j in range(3)] for i in range(3)]
+    p = [v[i] + B * wxv[i] + C * (w[i] * wv - th2 * v[i]) for i in range(3)]
+    Q = [
+        [
+            0.5 * V[i][j]
+            + C * (v[i] * w[j] + w[i] * v[j] - eye(i, j, 2.0 * wv) - wv * W[i][j])
+            + D * (w[i] * wxv[j] - wxv[i] * w[j] - 2.0 * th2 * V[i][j])
+            + 3.0 * D * wv * W[i][j]
+            - 2.0 * F * wv * W2[i][j]
+            for j in range(3)
+        ]
+        for i in range(3)
+    ]
+    return _kept(R, one), _kept(p, one), _kept(Ts, one), _kept(Q, one)
+
+
+def _ad(a, b):
+    """``ad(a) b`` for twists ``(6, ...)``, as a list of 6 rows."""
+    w, v, x, y = a[:3], a[3:], b[:3], b[3:]
+    return _cross(w, x) + _add(_cross(v, x), _cross(w, y))
+
+
+def _ad_transpose(a, z):
+    """``ad(a)^T z`` for a twist ``a`` and a wrench ``z = (m, f)``, as 6 rows."""
+    w, v, m, f = a[:3], a[3:], z[:3], z[3:]
+    return _add(_cross(m, w), _cross(f, v)) + _cross(f, w)
+
+
+def leaf_rates(data, lay, q, qd, g_core, eta_core):
+    """The leaves' world poses ``(n, 4, 4)``, body twists ``(n, 6)`` and record.
+
+    ``g_core``, ``eta_core``: poses and twists of the chain's points (rows of
+    ``lay.core``). The twist of a leaf is ``Ad(E)^-1 (eta_c + T(Omega) dOmega qd)``
+    (E its step from its chain point c), its pose ``g_c E``.
+    """
+    st = data.leaf_steps
+    xi = (q @ st.Phi_t).reshape(st.xi_ref_t.shape) + st.xi_ref_t
+    xd = (qd @ st.Phi_t).reshape(st.xi_ref_t.shape)
+    one = jax.lax.stop_gradient(xi[0, 0] * 0.0 + 1.0)
+    h, c = st.h[None], st.c[None]  # rows against (6, n) stacks
+    x1, x2, d1, d2 = xi[0], xi[1], xd[0], xd[1]
+    Omega = 0.5 * h * (x1 + x2) + c * _stacked(_ad(x1, x2))
+    Od = 0.5 * h * (d1 + d2) + c * (_stacked(_ad(x1, d2)) - _stacked(_ad(x2, d1)))
+    Omega, Od = _kept(Omega, one), _kept(Od, one)
+    R, p, Ts, Q = _exp_and_tangent(Omega, one)
+    # x = eta_c + T Od, then the twist at the step's end: (R^T x_w, R^T (x_v + x_w x p))
+    gT = jnp.transpose(g_core, (1, 2, 0))[..., lay.leaf_row]
+    eT = eta_core.T[:, lay.leaf_row]
+    Tw = _mat_vec(Ts, Od[:3])
+    Tv = _add(_mat_vec(Q, Od[:3]), _mat_vec(Ts, Od[3:]))
+    x = _kept(_add(list(eT[:3]), Tw) + _add(list(eT[3:]), Tv), one)
+    xv = _add(list(x[3:]), _cross(x[:3], p))
+    eta = jnp.stack(_mat_vec(R, x[:3], True) + _mat_vec(R, xv, True), axis=1)
+    # world pose: (R_c R, R_c p + p_c)
+    Rc = gT[:3, :3]
+    cols = [_mat_vec(Rc, R[:, j]) for j in range(3)]
+    pw = _add(_mat_vec(Rc, p), list(gT[:3, 3]))
+    zero, unit = jnp.zeros_like(one), jnp.ones_like(one)
+    g = [[cols[0][i], cols[1][i], cols[2][i], pw[i]] for i in range(3)]
+    g = jnp.transpose(_stacked(g + [[zero, zero, zero, unit]]), (2, 0, 1))
+    return g, eta, LeafRecord(R, p, Ts, Q, xi, one)
+
+
+def leaf_wrenches(data, rec: LeafRecord, W):
+    """The leaves' wrenches at their chain points and their steps' force.
+
+    ``W``: the leaves' body wrenches ``(n, 6)``. Returns ``y = Ad(E)^-T W`` (each
+    wrench at its step's start, ``(n, 6)``) and the generalised force of the
+    leaves' own steps ``sum dOmega^T T^T y`` ``(n_dof,)``, as
+    :func:`~sorojax.dynamics._wrench_recursion.leaf_wrenches` forms them.
+    """
+    st = data.leaf_steps
+    one = rec.one
+    Wt = W.T
+    Rf = _mat_vec(rec.R, Wt[3:])
+    y = _kept(_add(_mat_vec(rec.R, Wt[:3]), _cross(rec.p, Rf)) + Rf, one)
+    z = _add(_mat_vec(rec.Ts, y[:3], True), _mat_vec(rec.Q, y[3:], True))
+    z = _kept(z + _mat_vec(rec.Ts, y[3:], True), one)
+    x1, x2 = rec.xi[0], rec.xi[1]
+    h, c = st.h[None], st.c[None]
+    Z1 = 0.5 * h * z - c * _stacked(_ad_transpose(x2, z))
+    Z2 = 0.5 * h * z + c * _stacked(_ad_transpose(x1, z))
+    return y.T, st.Phi_t @ jnp.stack([Z1, Z2]).reshape(-1)
+
+
+def as_steps(rec: LeafRecord):
+    """The record as stacked arrays ``(R, p, T, xi1, xi2)``, leaf axis first.
+
+    The fields of :class:`~sorojax.kinematics._recursion.Steps`, for the leaves'
+    Jacobians (ROS34PW2's contact tangent).
+    """
+    R = jnp.transpose(rec.R, (2, 0, 1))
+    zero = jnp.zeros_like(rec.Ts)
+    T = jnp.concatenate(
+        [jnp.concatenate([rec.Ts, zero], 1), jnp.concatenate([rec.Q, rec.Ts], 1)]
+    )
+    return R, rec.p.T, jnp.transpose(T, (2, 0, 1)), rec.xi[0].T, rec.xi[1].T

@@ -1,0 +1,141 @@
+"""Many contact samples: the leaves' steps computed component by component.
+
+With at least ``MIN_LEAVES`` leaves (4th-order steps) the dynamics poses the leaves,
+takes their twists and maps their wrenches with the kernels of
+:mod:`sorojax.kinematics._leaves` (rows over the leaves) instead of the stacked ones
+of :mod:`sorojax.kinematics._recursion`. Both evaluate the same formulas, so poses,
+twists, Jacobians, generalised forces and their derivatives must agree to rounding
+(1e-12 relative; their derivatives 1e-11), on strains large
+enough that the exp's coefficients take both their Taylor series (theta < 1) and
+their closed forms.
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import sorojax as sj
+from sorojax.dynamics._contact import _add_rows
+from sorojax.dynamics._wrench_recursion import force_from_point_rates
+from sorojax.kinematics import _leaves
+from sorojax.kinematics._recursion import point_jacobians, point_rates
+from sorojax.model._precompute import precompute
+
+
+def _rod(n_samples):
+    """A rod on a planar joint, bending both ways (quadratic), over a floor."""
+    rod = sj.SoftLink(
+        [sj.Division(0.3, sj.CircularSection(0.01),
+                     sj.LegendreBasis((1, 1, 1, 0, 0, 0), 2))],
+        sj.Material(E=1e6, rho=1000.0, eta=1e3),
+        joint=sj.Joint("A", axis=(0, 1, 0)),
+    )  # fmt: skip
+    law = sj.ContactLaw(stiffness=1e4, smoothing=1e-4, damping=10.0,
+                        static_friction=0.5)  # fmt: skip
+    contact = sj.Contact(sj.Plane(), law, spacing=0.3 / (n_samples - 1))
+    return sj.Linkage([rod], gravity=(0, 0, -9.81), contact=contact)
+
+
+@pytest.fixture(scope="module")
+def rod():
+    return _rod(40)
+
+
+@pytest.fixture(scope="module")
+def state(rod):
+    """Large strains (tens of 1/m): some leaves' steps turn by more than a radian."""
+    rng = np.random.default_rng(5)
+    q = jnp.asarray(rng.normal(size=rod.n_dof) * 12.0)
+    qd = jnp.asarray(rng.normal(size=rod.n_dof))
+    return q, qd
+
+
+def _both(fn, *args):
+    """``fn(*args)`` compiled with the leaves' kernels and with the stacked ones."""
+    new = jax.jit(lambda *a: fn(*a))(*args)
+    old_min = _leaves.MIN_LEAVES
+    _leaves.MIN_LEAVES = 10**9
+    try:
+        old = jax.jit(lambda *a: fn(*a))(*args)
+    finally:
+        _leaves.MIN_LEAVES = old_min
+    return new, old
+
+
+def _close(a, b, rtol):
+    for x, y in zip(jax.tree.leaves(a), jax.tree.leaves(b), strict=True):
+        scale = max(float(jnp.max(jnp.abs(y))), 1e-300)
+        assert float(jnp.max(jnp.abs(x - y))) <= rtol * scale
+
+
+def test_the_leaves_kernels_apply_from_their_threshold(rod):
+    data = precompute(rod)
+    assert len(data.leaf_points) >= _leaves.MIN_LEAVES
+    assert _leaves.applies(data)
+    assert not _leaves.applies(precompute(_rod(12)))  # 10 leaves: the stacked ones
+
+
+def test_poses_twists_jacobians_and_forces_agree_with_the_stacked_kernels(rod, state):
+    data = precompute(rod)
+    q, qd = state
+    W = jnp.asarray(np.random.default_rng(6).normal(size=(rod.n_points, 6)))
+
+    def kin(q, qd, W):
+        pr = point_rates(data, q, qd)
+        return (
+            pr.g,
+            pr.eta,
+            point_jacobians(data, pr),
+            force_from_point_rates(data, pr, W),
+        )
+
+    new, old = _both(kin, q, qd, W)
+    # the leaves' own steps turn by less and by more than a radian (theta^2 = 1 is
+    # where the coefficients switch from their series to their closed forms)
+    R = jnp.transpose(
+        jax.jit(lambda q: point_rates(data, q, qd).leaves.R)(q), (2, 0, 1)
+    )
+    turn = jnp.arccos(jnp.clip((jnp.trace(R, axis1=1, axis2=2) - 1) / 2, -1, 1))
+    assert float(jnp.min(turn)) < 1.0 < float(jnp.max(turn))
+    _close(new, old, 1e-12)
+
+
+def test_derivatives_agree_with_the_stacked_kernels(rod, state):
+    """Forward and reverse mode through poses, twists and the mapped forces."""
+    data = precompute(rod)
+    q, qd = state
+    rng = np.random.default_rng(7)
+    dq, dqd = (jnp.asarray(rng.normal(size=rod.n_dof)) for _ in range(2))
+    W = jnp.asarray(rng.normal(size=(rod.n_points, 6)))
+
+    def f(q, qd):
+        pr = point_rates(data, q, qd)
+        return pr.g, pr.eta, force_from_point_rates(data, pr, W * pr.eta)
+
+    def tangents(q, qd):
+        jvp = jax.jvp(f, (q, qd), (dq, dqd))[1]
+        grad = jax.grad(lambda q, qd: sum(jnp.sum(jnp.sin(x)) for x in f(q, qd)),
+                        (0, 1))(q, qd)  # fmt: skip
+        return jvp, grad
+
+    new, old = _both(tangents, q, qd)
+    _close(new, old, 1e-11)
+
+
+def test_vmap_equals_plain_calls(rod, state):
+    data = precompute(rod)
+    q, qd = state
+    qs = q[None] + jnp.linspace(-0.5, 0.5, 3)[:, None]
+    f = jax.jit(lambda q: point_rates(data, q, qd).eta)
+    batched = jax.jit(jax.vmap(lambda q: point_rates(data, q, qd).eta))(qs)
+    _close(batched, jnp.stack([f(x) for x in qs]), 1e-13)
+
+
+def test_add_rows_by_gathers_equals_a_scatter_add():
+    rng = np.random.default_rng(8)
+    points = np.array([4, 0, 4, 2, 4, 0, 7])  # repeated, unsorted, rows left empty
+    values = jnp.asarray(rng.normal(size=(len(points), 6)))
+    W = jnp.asarray(rng.normal(size=(9, 6)))
+    expected = W.at[points].add(values)
+    _close(_add_rows(W, points, values), expected, 1e-15)
