@@ -213,10 +213,11 @@ def leaf_wrenches(data, rec: LeafRecord, W):
     z = _add(_mat_vec(rec.Ts, y[:3], True), _mat_vec(rec.Q, y[3:], True))
     z = _kept(z + _mat_vec(rec.Ts, y[3:], True), one)
     x1, x2 = rec.xi[0], rec.xi[1]
-    h, c = st.h[None], st.c[None]
-    Z1 = 0.5 * h * z - c * _stacked(_ad_transpose(x2, z))
-    Z2 = 0.5 * h * z + c * _stacked(_ad_transpose(x1, z))
-    return y.T, st.Phi_t @ jnp.stack([Z1, Z2]).reshape(-1)
+    h, c = st.h, st.c
+    b2, b1 = _ad_transpose(x2, z), _ad_transpose(x1, z)
+    Z1 = [0.5 * h * z[i] - c * b2[i] for i in range(6)]
+    Z2 = [0.5 * h * z[i] + c * b1[i] for i in range(6)]
+    return y.T, st.Phi_t @ jnp.stack(Z1 + Z2).reshape(-1)
 
 
 def as_steps(rec: LeafRecord):
