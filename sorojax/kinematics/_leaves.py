@@ -11,12 +11,14 @@ row of shape ``(n_leaves,)`` (structure of arrays), so each XLA kernel is a loop
 the leaves, vectorised along them, instead of one over ``(n, 3, 3)`` and ``(n, 6, 6)``
 stacks whose minor axes are three or six numbers long.
 
-XLA's CPU fusion computes each output row of a loop kernel by itself and copies an
-elementwise producer into every kernel that reads it, except an expensive one (a
-division, a square root): shared terms (the exp's coefficients, the step's twist,
-the rotated wrench) would be recomputed for every row that reads them. :func:`_kept`
-divides such a term by a one computed at run time, which makes XLA compute it once
-and store it (the quotient is exact: ``x / 1 = x``).
+XLA's CPU fusion copies an elementwise producer into every kernel that reads it,
+unless the producer is an expensive operation (a division, a square root): terms that
+many rows share (the exp's coefficients, the step's twist, the rotated wrench) would
+be recomputed in every kernel that reads them. :func:`_kept` stacks such terms and
+divides them by ones computed at run time, so that XLA computes them in one kernel
+and stores them (the quotient is exact: ``x / 1 = x``). A stack of more than eight
+rows is not fused into its reader (XLA leaves such concatenations to a copy): the
+twelve covector rows of the force are each their own vectorised kernel.
 
 For 4th-order steps (a linkage whose bases are below quartic,
 :func:`~sorojax.model._precompute.magnus_order`) and at least :data:`MIN_LEAVES`
