@@ -16,9 +16,7 @@ unless the producer is an expensive operation (a division, a square root): terms
 many rows share (the exp's coefficients, the step's twist, the rotated wrench) would
 be recomputed in every kernel that reads them. :func:`_kept` stacks such terms and
 divides them by ones computed at run time, so that XLA computes them in one kernel
-and stores them (the quotient is exact: ``x / 1 = x``). A stack of more than eight
-rows is not fused into its reader (XLA leaves such concatenations to a copy): the
-twelve covector rows of the force are each their own vectorised kernel.
+and stores them (the quotient is exact: ``x / 1 = x``).
 
 For 4th-order steps (a linkage whose bases are below quartic,
 :func:`~sorojax.model._precompute.magnus_order`) and at least :data:`MIN_LEAVES`
@@ -215,11 +213,10 @@ def leaf_wrenches(data, rec: LeafRecord, W):
     z = _add(_mat_vec(rec.Ts, y[:3], True), _mat_vec(rec.Q, y[3:], True))
     z = _kept(z + _mat_vec(rec.Ts, y[3:], True), one)
     x1, x2 = rec.xi[0], rec.xi[1]
-    h, c = st.h, st.c
-    b2, b1 = _ad_transpose(x2, z), _ad_transpose(x1, z)
-    Z1 = [0.5 * h * z[i] - c * b2[i] for i in range(6)]
-    Z2 = [0.5 * h * z[i] + c * b1[i] for i in range(6)]
-    return y.T, st.Phi_t @ jnp.stack(Z1 + Z2).reshape(-1)
+    h, c = st.h[None], st.c[None]
+    Z1 = 0.5 * h * z - c * _stacked(_ad_transpose(x2, z))
+    Z2 = 0.5 * h * z + c * _stacked(_ad_transpose(x1, z))
+    return y.T, st.Phi_t @ jnp.stack([Z1, Z2]).reshape(-1)
 
 
 def as_steps(rec: LeafRecord):
