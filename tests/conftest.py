@@ -53,8 +53,9 @@ jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_dtype_promotion", "strict")
 jax.config.update("jax_numpy_rank_promotion", "raise")
 # Per-user cache (shared by clones on one machine); keys hash the compiled program, so
-# stale entries are never used. Override with SOROJAX_TEST_JAX_CACHE.
-_xdg = os.environ.get("XDG_CACHE_HOME", str(pathlib.Path.home() / ".cache"))
+# stale entries are never used. Override with SOROJAX_TEST_JAX_CACHE. An empty
+# XDG_CACHE_HOME counts as unset (as the XDG spec and sorojax's own cache say).
+_xdg = os.environ.get("XDG_CACHE_HOME") or str(pathlib.Path.home() / ".cache")
 _cache = os.environ.get(
     "SOROJAX_TEST_JAX_CACHE", str(pathlib.Path(_xdg) / "sorojax" / "jax-tests")
 )

@@ -15,27 +15,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from test_contact_kernels import _rod  # the same rod and floor
 
-import sorojax as sj
 from sorojax.dynamics._contact import _add_rows
 from sorojax.dynamics._wrench_recursion import force_from_point_rates
 from sorojax.kinematics import _leaves
 from sorojax.kinematics._recursion import point_jacobians, point_rates
 from sorojax.model._precompute import precompute
-
-
-def _rod(n_samples):
-    """A rod on a planar joint, bending both ways (quadratic), over a floor."""
-    rod = sj.SoftLink(
-        [sj.Division(0.3, sj.CircularSection(0.01),
-                     sj.LegendreBasis((1, 1, 1, 0, 0, 0), 2))],
-        sj.Material(E=1e6, rho=1000.0, eta=1e3),
-        joint=sj.Joint("A", axis=(0, 1, 0)),
-    )  # fmt: skip
-    law = sj.ContactLaw(stiffness=1e4, smoothing=1e-4, damping=10.0,
-                        static_friction=0.5)  # fmt: skip
-    contact = sj.Contact(sj.Plane(), law, spacing=0.3 / (n_samples - 1))
-    return sj.Linkage([rod], gravity=(0, 0, -9.81), contact=contact)
 
 
 @pytest.fixture(scope="module")

@@ -30,7 +30,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array
 
-from ._step import _SERIES, _SMALL
+from ._step import _SERIES, _SMALL, closed_forms
 
 MIN_LEAVES = 32
 """The fewest leaves for which the dynamics uses these kernels."""
@@ -107,14 +107,7 @@ def _exp_and_tangent(Omega, one):
     t2 = jnp.where(small, 1.0, th2)
     t = jnp.sqrt(t2)
     sc = _kept([jnp.sin(t), jnp.cos(t)], one)
-    s, c = sc[0], sc[1]
-    closed = (
-        s / t,
-        (1.0 - c) / t2,
-        (t - s) / (t2 * t),
-        (t2 / 2 + c - 1.0) / (t2 * t2),
-        (2.0 * t - 3.0 * s + t * c) / (2.0 * t2 * t2 * t),
-    )
+    closed = closed_forms(t, t2, sc[0], sc[1])
     coef = []
     for col, closed_form in zip(_SERIES.T, closed, strict=True):
         series = jnp.full_like(th2, col[-1])

@@ -116,19 +116,23 @@ def _series_jvp(k, primals, tangents):
     return _series(x, k), _series(x, k + 1) * dx
 
 
-def coefficients(theta2):
-    """(A, B, C, D, F) as smooth functions of theta^2 (see the module docstring)."""
-    small = theta2 < _SMALL
-    t2 = jnp.where(small, 1.0, theta2)
-    t = jnp.sqrt(t2)
-    s, c = jnp.sin(t), jnp.cos(t)
-    closed = (
+def closed_forms(t, t2, s, c):
+    """(A, B, C, D, F) in closed form from ``t``, ``t2 = t^2``, ``sin t``, ``cos t``."""
+    return (
         s / t,
         (1.0 - c) / t2,
         (t - s) / (t2 * t),
         (t2 / 2 + c - 1.0) / (t2 * t2),
         (2.0 * t - 3.0 * s + t * c) / (2.0 * t2 * t2 * t),
     )
+
+
+def coefficients(theta2):
+    """(A, B, C, D, F) as smooth functions of theta^2 (see the module docstring)."""
+    small = theta2 < _SMALL
+    t2 = jnp.where(small, 1.0, theta2)
+    t = jnp.sqrt(t2)
+    closed = closed_forms(t, t2, jnp.sin(t), jnp.cos(t))
     series = _series(theta2[..., None])
     out = jnp.where(small[..., None], series, jnp.stack(closed, axis=-1))
     return tuple(out[..., i] for i in range(5))
