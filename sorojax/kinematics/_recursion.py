@@ -633,9 +633,10 @@ class PointRates(NamedTuple):
     ``(n_core, 6, n_dof)`` and ``etadot`` ``(n_core, 6)`` at the chain's points
     (``chain_layout(data).core``: leaves carry no mass, and their wrenches reach the
     coordinates through their chain points, :func:`~sorojax.dynamics.
-    _wrench_recursion.leaf_wrenches`); ``leaves``: the leaves' steps, None when
-    ``J`` and ``etadot`` have a row per point (no leaves; :func:`point_jacobians`
-    gives every point's ``J``).
+    _wrench_recursion.leaf_wrenches`); ``leaves``: the leaves' steps (a
+    :class:`~sorojax.kinematics._leaves.LeafRecord` where those kernels apply),
+    None when ``J`` and ``etadot`` have a row per point (no leaves;
+    :func:`point_jacobians` gives every point's ``J``).
     """
 
     g: Array
