@@ -41,8 +41,7 @@ class LeafRecord(NamedTuple):
 
     ``R`` ``(3, 3, n)`` and ``p`` ``(3, n)``: exp(Omega); ``Ts``, ``Q`` ``(3, 3, n)``:
     the blocks of T(Omega) = [[Ts, 0], [Q, Ts]]; ``xi`` ``(2, 6, n)``: the strains at
-    the step's Zanna points; ``one``: ``(n,)`` ones computed at run time
-    (:func:`_kept`).
+    the step's Zanna points.
     """
 
     R: Array
@@ -50,13 +49,17 @@ class LeafRecord(NamedTuple):
     Ts: Array
     Q: Array
     xi: Array
-    one: Array
 
 
 def applies(data) -> bool:
     """Whether the dynamics poses the leaves of ``data`` here (static)."""
     st = data.leaf_steps
     return st is not None and st.order == 4 and len(data.leaf_points) >= MIN_LEAVES
+
+
+def _run_time_one(xi):
+    """Ones ``(n,)`` XLA cannot fold: from the strains, no derivative (``_kept``)."""
+    return jax.lax.stop_gradient(xi[0, 0] * 0.0 + 1.0)
 
 
 def _kept(x, one):
@@ -163,9 +166,8 @@ def leaf_rates(data, lay, q, qd, g_core, eta_core):
     (E its step from its chain point c), its pose ``g_c E``.
     """
     st = data.leaf_steps
-    xi = (q @ st.Phi_t).reshape(st.xi_ref_t.shape) + st.xi_ref_t
-    xd = (qd @ st.Phi_t).reshape(st.xi_ref_t.shape)
-    one = jax.lax.stop_gradient(xi[0, 0] * 0.0 + 1.0)
+    xi, xd = st.strains_last(q), st.strains_last(qd, ref=False)
+    one = _run_time_one(xi)
     h, c = st.h[None], st.c[None]  # rows against (6, n) stacks
     x1, x2, d1, d2 = xi[0], xi[1], xd[0], xd[1]
     Omega = 0.5 * h * (x1 + x2) + c * _stacked(_ad(x1, x2))
@@ -187,7 +189,7 @@ def leaf_rates(data, lay, q, qd, g_core, eta_core):
     zero, unit = jnp.zeros_like(one), jnp.ones_like(one)
     g = [[cols[0][i], cols[1][i], cols[2][i], pw[i]] for i in range(3)]
     g = jnp.transpose(_stacked(g + [[zero, zero, zero, unit]]), (2, 0, 1))
-    return g, eta, LeafRecord(R, p, Ts, Q, xi, one)
+    return g, eta, LeafRecord(R, p, Ts, Q, xi)
 
 
 def leaf_wrenches(data, rec: LeafRecord, W):
@@ -199,7 +201,7 @@ def leaf_wrenches(data, rec: LeafRecord, W):
     :func:`~sorojax.dynamics._wrench_recursion.leaf_wrenches` forms them.
     """
     st = data.leaf_steps
-    one = rec.one
+    one = _run_time_one(rec.xi)
     Wt = W.T
     Rf = _mat_vec(rec.R, Wt[3:])
     y = _kept(_add(_mat_vec(rec.R, Wt[:3]), _cross(rec.p, Rf)) + Rf, one)
@@ -209,7 +211,7 @@ def leaf_wrenches(data, rec: LeafRecord, W):
     h, c = st.h[None], st.c[None]
     Z1 = 0.5 * h * z - c * _stacked(_ad_transpose(x2, z))
     Z2 = 0.5 * h * z + c * _stacked(_ad_transpose(x1, z))
-    return y.T, st.Phi_t @ jnp.stack([Z1, Z2]).reshape(-1)
+    return y.T, st.basis_transpose_last(jnp.stack([Z1, Z2]))
 
 
 def as_steps(rec: LeafRecord):

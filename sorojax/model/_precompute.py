@@ -153,8 +153,12 @@ class StepData(eqx.Module):
         if self.Phi_z is not None:
             xi = jnp.einsum("szan,n->sza", self.Phi_z, x)
             return xi + self.xi_ref_z if ref else xi
+        return jnp.transpose(self.strains_last(x, ref), (2, 0, 1))
+
+    def strains_last(self, x, ref: bool = True):
+        """:meth:`strains` with the step axis last: ``(n_nodes, 6, n_steps)``."""
         xi = (x @ self.Phi_t).reshape(self.xi_ref_t.shape)
-        return jnp.transpose(xi + self.xi_ref_t if ref else xi, (2, 0, 1))
+        return xi + self.xi_ref_t if ref else xi
 
     def basis(self, V=None):
         """``Phi_z`` ``(n_steps, n_nodes, 6, n_dof)``, or ``Phi_z V`` (k columns)."""
@@ -170,7 +174,11 @@ class StepData(eqx.Module):
         """``sum_s Phi_z[s]^T Z[s]`` for node covectors ``Z`` (n_steps, n_nodes, 6)."""
         if self.Phi_z is not None:
             return jnp.einsum("szan,sza->n", self.Phi_z, Z)
-        return self.Phi_t @ jnp.transpose(Z, (1, 2, 0)).reshape(-1)
+        return self.basis_transpose_last(jnp.transpose(Z, (1, 2, 0)))
+
+    def basis_transpose_last(self, Z):
+        """:meth:`basis_transpose` of ``Z`` ``(n_nodes, 6, n_steps)`` (leaves)."""
+        return self.Phi_t @ Z.reshape(-1)
 
 
 def _step_data(links: list, n: int, order: int, leaves: bool = False) -> StepData:
