@@ -7,8 +7,11 @@ of :mod:`sorojax.kinematics._recursion`. Both evaluate the same formulas, so pos
 twists, Jacobians, generalised forces and their derivatives must agree to rounding
 (1e-12 relative; their derivatives 1e-11), on strains large
 enough that the exp's coefficients take both their Taylor series (theta < 1) and
-their closed forms. Contact wrenches at distinct sample points are summed by a
-gather instead of a scatter: the same sums.
+their closed forms. The strains at the steps' nodes and the force of their
+covectors read the bases by their nonzero entries (``LeafBasis``): the same products
+as the full-width bases, also on a rod of two divisions whose second basis mixes
+strain rows. Contact wrenches at distinct sample points are summed by a gather
+instead of a scatter: the same sums.
 """
 
 import jax
@@ -17,6 +20,7 @@ import numpy as np
 import pytest
 from test_contact_kernels import _rod  # the same rod and floor
 
+import sorojax as sj
 from sorojax.dynamics._contact import _add_rows
 from sorojax.dynamics._wrench_recursion import force_from_point_rates
 from sorojax.kinematics import _leaves
@@ -27,6 +31,28 @@ from sorojax.model._precompute import precompute
 @pytest.fixture(scope="module")
 def rod():
     return _rod(40)
+
+
+def _mixed(X):
+    """Two columns: bending both ways in one (cos, sin), torsion in the other."""
+    z = jnp.zeros_like(X)
+    bend = jnp.stack([z, jnp.cos(jnp.pi * X), jnp.sin(jnp.pi * X), z, z, z])
+    twist = jnp.stack([1.0 + X, z, z, z, z, z])
+    return jnp.stack([bend, twist], axis=1)
+
+
+@pytest.fixture(scope="module")
+def two_divisions():
+    """60 samples on a rod whose divisions have different bases and columns."""
+    sec, law = sj.CircularSection(0.01), sj.ContactLaw(stiffness=1e4, smoothing=1e-4)
+    rod = sj.SoftLink(
+        [sj.Division(0.15, sec, sj.LegendreBasis((0, 1, 1, 0, 0, 0), 1)),
+         sj.Division(0.15, sec, sj.CustomBasis(_mixed, 2, order=2))],
+        sj.Material(E=1e6, rho=1000.0, eta=1e3),
+        joint=sj.Joint("A", axis=(0, 1, 0)),
+    )  # fmt: skip
+    contact = sj.Contact(sj.Plane(), law, spacing=0.3 / 59)
+    return sj.Linkage([rod], gravity=(0, 0, -9.81), contact=contact)
 
 
 @pytest.fixture(scope="module")
@@ -129,3 +155,40 @@ def test_contact_wrenches_gathered_at_distinct_points_equal_a_scatter_add():
     jaxpr = jax.make_jaxpr(lambda W, v: _add_rows(W, points, v))(W, values)
     assert "scatter" not in str(jaxpr)
     assert bool(jnp.all(gathered == W.at[points].add(values)))
+
+
+def test_leaf_bases_by_their_nonzero_entries_equal_the_full_width_products(
+    rod, two_divisions
+):
+    """Strains and the transposed products of LeafBasis against ``Phi_t``."""
+    rng = np.random.default_rng(9)
+    for lk in (rod, two_divisions):
+        st = precompute(lk).leaf_steps
+        lb = st.compact
+        assert lb is not None
+        x = jnp.asarray(rng.normal(size=lk.n_dof))
+        Z = jnp.asarray(rng.normal(size=st.xi_ref_t.shape))
+        _close(lb.strains(x, st.xi_ref_t), st.strains_last(x), 1e-14)
+        _close(lb.strains(x), st.strains_last(x, ref=False), 1e-14)
+        _close(lb.transpose(tuple(Z), lk.n_dof), st.basis_transpose_last(Z), 1e-13)
+    # a Legendre column is read on its mode's row; a custom basis's on every row
+    assert precompute(rod).leaf_steps.compact.row == (1, 1, 1, 2, 2, 2)
+    lb = precompute(two_divisions).leaf_steps.compact
+    assert len(lb.segments) == 2
+    assert lb.row == (0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 5, 5)
+
+
+def test_two_divisions_agree_with_the_stacked_kernels(two_divisions):
+    """Poses, twists and forces, and their forward derivatives, on two divisions."""
+    lk = two_divisions
+    data = precompute(lk)
+    rng = np.random.default_rng(10)
+    q, qd, dq = (jnp.asarray(rng.normal(size=lk.n_dof) * 6.0) for _ in range(3))
+    W = jnp.asarray(rng.normal(size=(lk.n_points, 6)))
+
+    def f(q):
+        pr = point_rates(data, q, qd)
+        return pr.g, pr.eta, force_from_point_rates(data, pr, W)
+
+    new, old = _both(lambda q: jax.jvp(f, (q,), (dq,)), q)
+    _close(new, old, 1e-11)

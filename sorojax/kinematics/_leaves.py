@@ -18,6 +18,11 @@ be recomputed in every kernel that reads them. :func:`_kept` stacks such terms a
 divides them by ones computed at run time, so that XLA computes them in one kernel
 and stores them (the quotient is exact: ``x / 1 = x``).
 
+The strains at the steps' nodes and the generalised force of the steps' covectors
+read the bases by their nonzero entries (:class:`~sorojax.model._precompute.
+LeafBasis`: a polynomial basis's column is nonzero on one strain row, and a leaf
+reads its own division's columns only), not the full-width ``Phi_t``.
+
 For 4th-order steps (a linkage whose bases are below quartic,
 :func:`~sorojax.model._precompute.magnus_order`) and at least :data:`MIN_LEAVES`
 leaves; otherwise the stacked kernels of :mod:`sorojax.kinematics._recursion` serve.
@@ -30,10 +35,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array
 
+from ..model._precompute import MIN_LEAVES
 from ._step import _SERIES, _SMALL, closed_forms
-
-MIN_LEAVES = 32
-"""The fewest leaves for which the dynamics uses these kernels."""
 
 
 class LeafRecord(NamedTuple):
@@ -54,7 +57,11 @@ class LeafRecord(NamedTuple):
 def applies(data) -> bool:
     """Whether the dynamics poses the leaves of ``data`` here (static)."""
     st = data.leaf_steps
-    return st is not None and st.order == 4 and len(data.leaf_points) >= MIN_LEAVES
+    return (
+        st is not None
+        and st.compact is not None
+        and len(data.leaf_points) >= MIN_LEAVES
+    )
 
 
 def _run_time_one(xi):
@@ -166,8 +173,9 @@ def leaf_rates(data, lay, q, qd, g_core, eta_core):
     (E its step from its chain point c), its pose ``g_c E``.
     """
     st = data.leaf_steps
-    xi, xd = st.strains_last(q), st.strains_last(qd, ref=False)
+    xi, xd = st.compact.strains(q, st.xi_ref_t), st.compact.strains(qd)
     one = _run_time_one(xi)
+    xi = _kept(xi, one)
     h, c = st.h[None], st.c[None]  # rows against (6, n) stacks
     x1, x2, d1, d2 = xi[0], xi[1], xd[0], xd[1]
     Omega = 0.5 * h * (x1 + x2) + c * _stacked(_ad(x1, x2))
@@ -211,7 +219,7 @@ def leaf_wrenches(data, rec: LeafRecord, W):
     h, c = st.h[None], st.c[None]
     Z1 = 0.5 * h * z - c * _stacked(_ad_transpose(x2, z))
     Z2 = 0.5 * h * z + c * _stacked(_ad_transpose(x1, z))
-    return y.T, st.basis_transpose_last(jnp.stack([Z1, Z2]))
+    return y.T, st.compact.transpose((Z1, Z2), data.n_dof)
 
 
 def as_steps(rec: LeafRecord):

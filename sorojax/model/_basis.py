@@ -71,6 +71,16 @@ class AbstractStrainBasis(eqx.Module):
     def __call__(self, X1) -> Float[Array, "6 n_dof"]:
         """Normalised basis at ``X1`` (angular rows not yet divided by the length)."""
 
+    @property
+    def column_modes(self) -> tuple[tuple[int, ...], ...]:
+        """For each column, the strain rows (0-5) where it may be nonzero.
+
+        Every row unless a basis knows better (a polynomial basis: one row per
+        column). Static: the kernels of many contact samples multiply by the
+        nonzero entries only.
+        """
+        return ((0, 1, 2, 3, 4, 5),) * self.n_dof
+
 
 class AbstractPolynomialBasis(AbstractStrainBasis):
     """Block basis: for each active mode, polynomials of orders 0..order on X1."""
@@ -92,6 +102,16 @@ class AbstractPolynomialBasis(AbstractStrainBasis):
         """Highest order over active modes (0 if none)."""
         return max(
             (o for m, o in zip(self.modes, self.orders, strict=True) if m), default=0
+        )
+
+    @property
+    def column_modes(self) -> tuple[tuple[int, ...], ...]:
+        """Each column's one strain row: its mode's."""
+        return tuple(
+            (row,)
+            for row, (m, o) in enumerate(zip(self.modes, self.orders, strict=True))
+            if m
+            for _ in range(o + 1)
         )
 
     def __call__(self, X1):
@@ -217,6 +237,11 @@ class PaddedBasis(AbstractStrainBasis):
     def max_order(self) -> int:
         """The class order (it sets the Magnus order and the default points)."""
         return self.basis.max_order
+
+    @property
+    def column_modes(self) -> tuple[tuple[int, ...], ...]:
+        """The class's basis's (padded columns are zero on every row)."""
+        return self.basis.column_modes
 
     def __call__(self, X1):
         """The class's basis with the padded columns zero."""

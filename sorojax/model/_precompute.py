@@ -37,6 +37,12 @@ _C = math.sqrt(3.0) / 12.0  # 4th-order Magnus commutator weight: c = _C h^2
 # h^4 |d^4 Phi / dX^4| (the full circle under an end moment ended 3e-5 L from the
 # exact tip at order 4, 3e-6 L at order 8: tests/test_magnus_accuracy.py).
 HIGH_ORDER = 4
+MIN_LEAVES = 32
+"""The fewest leaves (4th-order steps) whose bases are also kept by their nonzero
+entries (:class:`LeafBasis`), for the dynamics' kernels of many contact samples
+(:mod:`sorojax.kinematics._leaves`): below it the stacked kernels run faster and
+compile sooner (2-core CPU: 38-43 against 41-48 us at 22 leaves, the loop's program
+0.5 s longer to compile at 10-22 leaves)."""
 
 
 def magnus_order(linkage: Linkage) -> int:
@@ -66,6 +72,8 @@ class DivisionData(eqx.Module):
         xi_ref: (n_pts, 6) reference strain at the points.
         Sigma: (n_pts, 6, 6) stiffness at the points.
         Upsilon: (n_pts, 6, 6) damping at the points.
+        column_modes: each column's strain rows that may be nonzero (static, from
+            the basis: :attr:`~sorojax.model.AbstractStrainBasis.column_modes`).
         locked: (n,) 1 at padded coordinates of a :class:`~sorojax.model.PaddedBasis`
             (their basis columns are zero), 0 elsewhere; None without padding.
         leaf_h, leaf_Phi_z, leaf_xi_ref_z: the leaves' own steps (from the chain
@@ -75,6 +83,7 @@ class DivisionData(eqx.Module):
 
     offset: int = eqx.field(static=True)
     n_dof: int = eqx.field(static=True)
+    column_modes: tuple[tuple[int, ...], ...] = eqx.field(static=True)
     h: Float[Array, " n_steps"]
     Phi_z: Float[Array, "n_steps n_nodes 6 n"]
     xi_ref_z: Float[Array, "n_steps n_nodes 6"]
@@ -109,6 +118,125 @@ class LinkData(eqx.Module):
     divisions: tuple[DivisionData, ...]
 
 
+class LeafBasis(eqx.Module):
+    """The leaves' strain bases by their nonzero entries (many contact samples).
+
+    A leaf's step lies in one division, whose columns are nonzero on few strain rows
+    (a polynomial basis: one row each). Slot ``s`` holds, for every leaf, the entries
+    on strain row ``row[s]`` at the step's nodes of one column of the leaf's
+    division: column ``dof[s][k]`` of the linkage for the leaves of
+    ``segments[k]`` (-1: none there, the entries are zero). Products with the bases
+    then cost the nonzero entries only, where the full-width ``Phi_t`` has
+    ``n_dof x 6`` entries per node.
+
+    Attributes:
+        values: ``(n_slots, n_nodes, n_leaves)`` the entries.
+        row: the strain row of each slot (static).
+        segments: ``((start, stop), ...)``: the leaves of each division that has
+            leaves, contiguous in leaf order (static).
+        dof: for each slot, its column in each segment (static).
+    """
+
+    values: Float[Array, "n_slots n_nodes n_leaves"]
+    row: tuple[int, ...] = eqx.field(static=True)
+    segments: tuple[tuple[int, int], ...] = eqx.field(static=True)
+    dof: tuple[tuple[int, ...], ...] = eqx.field(static=True)
+
+    def _coordinates(self, x, s: int):
+        """Slot ``s``'s coordinate of ``x`` for every leaf: a scalar where it is one."""
+        cols = self.dof[s]
+        if len(set(cols)) == 1:
+            return x[max(cols[0], 0)]
+        idx = np.concatenate(
+            [
+                np.full(b - a, max(j, 0))
+                for (a, b), j in zip(self.segments, cols, strict=True)
+            ]
+        )
+        return x[idx][None]  # against the (n_nodes, n_leaves) entries
+
+    def strains(self, x, xi_ref=None):
+        """Rows ``(n_nodes, 6, n_leaves)``: the strains at the nodes for ``x``.
+
+        ``xi_ref``: the reference strains to add (None: the rates, for ``x = qd``).
+        """
+        nz, n = self.values.shape[1:]
+        per_row = [None] * 6
+        for s, r in enumerate(self.row):
+            term = self.values[s] * self._coordinates(x, s)
+            per_row[r] = term if per_row[r] is None else per_row[r] + term
+        zero = jnp.zeros((nz, n), self.values.dtype)
+        xi = jnp.stack([zero if t is None else t for t in per_row], axis=1)
+        return xi if xi_ref is None else xi + xi_ref
+
+    def transpose(self, Z, n_dof: int):
+        """``sum Phi^T Z`` over the leaves' nodes for covectors ``Z``.
+
+        ``Z``: one ``(6, n)`` array per node (rows over the leaves).
+        """
+        if not self.row:
+            return jnp.zeros(n_dof, Z[0].dtype)
+        P = jnp.stack(
+            [
+                sum(self.values[s, z] * Zz[r] for z, Zz in enumerate(Z))
+                for s, r in enumerate(self.row)
+            ]
+        )
+        n = Z[0].shape[-1]
+        if len(self.segments) == 1:
+            S = jnp.sum(P, axis=1, keepdims=True)
+        else:  # sums over each division's leaves: a product with their indicators
+            ind = np.zeros((n, len(self.segments)))
+            for k, (a, b) in enumerate(self.segments):
+                ind[a:b, k] = 1.0
+            S = P @ ind
+        # each coordinate's slots (one for a polynomial basis), gathered: no scatter
+        flat = [[] for _ in range(n_dof)]
+        for s, cols in enumerate(self.dof):
+            for k, j in enumerate(cols):
+                if j >= 0:
+                    flat[j].append(s * len(self.segments) + k)
+        width = max(1, max(len(f) for f in flat))
+        pad = S.size  # the appended zero
+        idx = np.array([f + [pad] * (width - len(f)) for f in flat]).T
+        S = jnp.concatenate([S.reshape(-1), jnp.zeros(1, S.dtype)])
+        return jnp.sum(S[idx], axis=0)
+
+
+def _leaf_basis(divisions) -> LeafBasis:
+    """:class:`LeafBasis` of the divisions that have leaves (4th-order steps)."""
+    segments, start = [], 0
+    per_div = []  # per division: its columns on each strain row
+    for dd in divisions:
+        m = dd.leaf_h.shape[0]
+        segments.append((start, start + m))
+        start += m
+        modes = dd.column_modes
+        per_div.append([[j for j, on in enumerate(modes) if r in on] for r in range(6)])
+    values, row, dof = [], [], []
+    for r in range(6):
+        for k in range(max(len(cols[r]) for cols in per_div)):
+            blocks, cols_k = [], []
+            for dd, cols in zip(divisions, per_div, strict=True):
+                m = dd.leaf_h.shape[0]
+                if k < len(cols[r]):
+                    blocks.append(dd.leaf_Phi_z[:, :, r, cols[r][k]].T)
+                    cols_k.append(dd.offset + cols[r][k])
+                else:
+                    blocks.append(jnp.zeros((dd.leaf_Phi_z.shape[1], m)))
+                    cols_k.append(-1)
+            values.append(jnp.concatenate(blocks, axis=1))
+            row.append(r)
+            dof.append(tuple(cols_k))
+    nz = divisions[0].leaf_Phi_z.shape[1]
+    return LeafBasis(
+        values=jnp.stack(values) if values else jnp.zeros((0, nz, start)),
+        row=tuple(row),
+        segments=tuple(segments),
+        dof=tuple(dof),
+    )
+
+
 class StepData(eqx.Module):
     """Every Magnus step of the linkage in one batch, full column width.
 
@@ -135,6 +263,8 @@ class StepData(eqx.Module):
         Phi_t: the same bases as an ``(n_dof, n_nodes * 6 * n_steps)`` matrix
             (leaves only, else None).
         xi_ref_t: (n_nodes, 6, n_steps) the reference strains (leaves only).
+        compact: the leaves' bases by their nonzero entries (4th-order leaves only,
+            else None): :class:`LeafBasis`.
     """
 
     order: int = eqx.field(static=True)
@@ -144,6 +274,7 @@ class StepData(eqx.Module):
     xi_ref_z: Float[Array, "n_steps n_nodes 6"] | None = None
     Phi_t: Float[Array, "n_dof n_basis"] | None = None
     xi_ref_t: Float[Array, "n_nodes 6 n_steps"] | None = None
+    compact: LeafBasis | None = None
 
     def strains(self, x, ref: bool = True):
         """Strains ``(n_steps, n_nodes, 6)`` at the nodes for coordinates ``x``.
@@ -184,7 +315,7 @@ class StepData(eqx.Module):
 def _step_data(links: list, n: int, order: int, leaves: bool = False) -> StepData:
     """The chain's steps (joints and divisions), or with ``leaves`` the leaves'."""
     nz = len(_NODES[order])
-    h, c, Phi_z, xr = [], [], [], []
+    h, c, Phi_z, xr, with_leaves = [], [], [], [], []
     for ld in links:
         jo, jn = ld.joint_offset, ld.joint_Phi.shape[1]
         if jn and not leaves:
@@ -204,6 +335,7 @@ def _step_data(links: list, n: int, order: int, leaves: bool = False) -> StepDat
             h.append(dh)
             c.append(_C * dh * dh)
             if leaves:  # the step axis last (StepData.Phi_t)
+                with_leaves.append(dd)
                 dP = jnp.transpose(dP, (3, 1, 2, 0))
                 Phi_z.append(jnp.zeros((n, nz, 6, m)).at[o : o + dd.n_dof].set(dP))
                 xr.append(jnp.transpose(dx, (1, 2, 0)))
@@ -225,6 +357,12 @@ def _step_data(links: list, n: int, order: int, leaves: bool = False) -> StepDat
             c=jnp.concatenate(c),
             Phi_t=jnp.concatenate(Phi_z, axis=-1).reshape(n, -1),
             xi_ref_t=jnp.concatenate(xr, axis=-1),
+            compact=(
+                _leaf_basis(with_leaves)
+                if order == 4
+                and sum(d.leaf_h.shape[0] for d in with_leaves) >= MIN_LEAVES
+                else None
+            ),
         )
     return StepData(
         order=order,
@@ -384,6 +522,7 @@ def _precompute(linkage: Linkage) -> LinkageData:
                     DivisionData(
                         offset=dl.offset,
                         n_dof=dl.n_dof,
+                        column_modes=div.basis.column_modes,
                         h=jnp.asarray(np.diff(Xc)) * L,
                         Phi_z=Phi_z[:n_steps],
                         xi_ref_z=xr_z[:n_steps],
