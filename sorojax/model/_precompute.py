@@ -40,9 +40,9 @@ HIGH_ORDER = 4
 MIN_LEAVES = 32
 """The fewest leaves (4th-order steps) whose bases are also kept by their nonzero
 entries (:class:`LeafBasis`), for the dynamics' kernels of many contact samples
-(:mod:`sorojax.kinematics._leaves`): below it the stacked kernels run faster and
-compile sooner (2-core CPU: 38-43 against 41-48 us at 22 leaves, the loop's program
-0.5 s longer to compile at 10-22 leaves)."""
+(:mod:`sorojax.kinematics._leaves`). Below it the stacked kernels serve: they run
+nearly as fast there (2-core CPU, 22 leaves: 41-48 against 38-43 us per evaluation)
+and their programs compile about 0.5 s sooner (10-22 leaves)."""
 
 
 def magnus_order(linkage: Linkage) -> int:
