@@ -179,7 +179,7 @@ def test_leaf_bases_by_their_nonzero_entries_equal_the_full_width_products(
 
 
 def test_two_divisions_agree_with_the_stacked_kernels(two_divisions):
-    """Poses, twists and forces, and their forward derivatives, on two divisions."""
+    """Poses, twists, Jacobians, forces and their forward derivatives, two divisions."""
     lk = two_divisions
     data = precompute(lk)
     rng = np.random.default_rng(10)
@@ -188,7 +188,8 @@ def test_two_divisions_agree_with_the_stacked_kernels(two_divisions):
 
     def f(q):
         pr = point_rates(data, q, qd)
-        return pr.g, pr.eta, force_from_point_rates(data, pr, W)
+        J = point_jacobians(data, pr)
+        return pr.g, pr.eta, J, force_from_point_rates(data, pr, W)
 
     new, old = _both(lambda q: jax.jvp(f, (q,), (dq,)), q)
     _close(new, old, 1e-11)

@@ -1,8 +1,9 @@
 """The leaves' steps in the dynamics, computed component by component.
 
 A leaf (a contact sample off the kinematic chain, :mod:`sorojax.model._layout`) is one
-Magnus step from its chain point: its pose, its twist and, backwards, the generalised
-force of a wrench on it need that step's ``exp(Omega)`` and tangent ``T(Omega)``
+Magnus step from its chain point: its pose, its twist, its Jacobian (the contacts'
+tangent in ROS34PW2's W) and, backwards, the generalised force of a wrench on it need
+that step's ``exp(Omega)`` and tangent ``T(Omega)``
 (:mod:`sorojax.kinematics._recursion`, :func:`~sorojax.kinematics._recursion.
 point_rates`, :func:`~sorojax.dynamics._wrench_recursion.leaf_wrenches`). With many
 leaves (a rod sampled every few millimetres) this is most of an evaluation. Here the
@@ -222,15 +223,37 @@ def leaf_wrenches(data, rec: LeafRecord, W):
     return y.T, st.compact.transpose((Z1, Z2), data.n_dof)
 
 
-def as_steps(rec: LeafRecord):
-    """The record as stacked arrays ``(R, p, T, xi1, xi2)``, leaf axis first.
+def leaf_jacobians(data, rec: LeafRecord, J_chain):
+    """The leaves' Jacobians ``(n, 6, n_dof)``: ``Ad(E)^-1 (J_c + T dOmega)``.
 
-    The fields of :class:`~sorojax.kinematics._recursion.Steps`, for the leaves'
-    Jacobians (ROS34PW2's contact tangent).
+    ``J_chain``: each leaf's chain point's Jacobian ``(n, 6, n_dof)``. Every
+    quantity is a row over the coordinates and the leaves, ``(n_dof, n)``; the
+    columns of the bases come from :class:`~sorojax.model._precompute.LeafBasis`
+    (zero rows where a strain row has none), ``dOmega`` as in :func:`leaf_rates`.
     """
-    R = jnp.transpose(rec.R, (2, 0, 1))
-    zero = jnp.zeros_like(rec.Ts)
-    T = jnp.concatenate(
-        [jnp.concatenate([rec.Ts, zero], 1), jnp.concatenate([rec.Q, rec.Ts], 1)]
-    )
-    return R, rec.p.T, jnp.transpose(T, (2, 0, 1)), rec.xi[0].T, rec.xi[1].T
+    st = data.leaf_steps
+    lb = st.compact
+    n_dof, n = data.n_dof, rec.xi.shape[-1]
+    one = _run_time_one(rec.xi)
+    zero = jnp.zeros((n_dof, n), rec.xi.dtype)
+    P = [[zero] * 6 for _ in range(rec.xi.shape[0])]  # nodes x strain rows
+    for s, r in enumerate(lb.row):
+        for z in range(len(P)):
+            col = zero
+            for (a, b), j in zip(lb.segments, lb.dof[s], strict=True):
+                if j >= 0:
+                    col = col.at[j, a:b].set(lb.values[s, z, a:b])
+            P[z][r] = P[z][r] + col
+    x1, x2 = rec.xi[0][:, None], rec.xi[1][:, None]  # (6, 1, n) against (n_dof, n)
+    h, c = st.h[None, None], st.c[None, None]
+    P1, P2 = jnp.stack(P[0]), jnp.stack(P[1])
+    dO = 0.5 * h * (P1 + P2) + c * (_stacked(_ad(x1, P2)) - _stacked(_ad(x2, P1)))
+    dO = _kept(dO, one)
+    Ts, Q, R, p = (m[..., None, :] for m in (rec.Ts, rec.Q, rec.R, rec.p))
+    Jc = jnp.transpose(J_chain, (1, 2, 0))
+    Tw = _mat_vec(Ts, dO[:3])
+    Tv = _add(_mat_vec(Q, dO[:3]), _mat_vec(Ts, dO[3:]))
+    x = _kept(_add(list(Jc[:3]), Tw) + _add(list(Jc[3:]), Tv), one)
+    xv = _add(list(x[3:]), _cross(x[:3], p))
+    J = jnp.stack(_mat_vec(R, x[:3], True) + _mat_vec(R, xv, True))
+    return jnp.transpose(J, (2, 0, 1))

@@ -665,8 +665,9 @@ def point_jacobians(data: LinkageData, pr: PointRates) -> Array:
         return pr.J
     lay = chain_layout(data)
     kl = pr.leaves
-    if isinstance(kl, _leaves.LeafRecord):
-        kl = Steps(*_leaves.as_steps(kl))
+    if isinstance(kl, _leaves.LeafRecord):  # many leaves: component by component
+        J_l = _leaves.leaf_jacobians(data, kl, pr.J[lay.leaf_row])
+        return with_leaves(lay, pr.J, J_l)
     rel = kl.T @ step_jacobians(data, kl, None, st=data.leaf_steps)
     return with_leaves(lay, pr.J, _Ad_inv(kl.R, kl.p) @ (pr.J[lay.leaf_row] + rel))
 
