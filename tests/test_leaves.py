@@ -160,7 +160,7 @@ def test_contact_wrenches_gathered_at_distinct_points_equal_a_scatter_add():
 def test_leaf_bases_by_their_nonzero_entries_equal_the_full_width_products(
     rod, two_divisions
 ):
-    """Strains and the transposed products of LeafBasis against ``Phi_t``."""
+    """Strains, columns and transposed products of LeafBasis against ``Phi_t``."""
     rng = np.random.default_rng(9)
     for lk in (rod, two_divisions):
         st = precompute(lk).leaf_steps
@@ -168,9 +168,13 @@ def test_leaf_bases_by_their_nonzero_entries_equal_the_full_width_products(
         assert lb is not None
         x = jnp.asarray(rng.normal(size=lk.n_dof))
         Z = jnp.asarray(rng.normal(size=st.xi_ref_t.shape))
-        _close(lb.strains(x, st.xi_ref_t), st.strains_last(x), 1e-14)
-        _close(lb.strains(x), st.strains_last(x, ref=False), 1e-14)
-        _close(lb.transpose(tuple(Z), lk.n_dof), st.basis_transpose_last(Z), 1e-13)
+        last = (1, 2, 0)  # StepData's (n_steps, n_nodes, 6) -> (n_nodes, 6, n_steps)
+        _close(lb.strains(x, st.xi_ref_t), jnp.transpose(st.strains(x), last), 1e-14)
+        rates = jnp.transpose(st.strains(x, ref=False), last)
+        _close(lb.strains(x), rates, 1e-14)
+        full = st.basis_transpose(jnp.transpose(Z, (2, 0, 1)))
+        _close(lb.transpose(tuple(Z), lk.n_dof), full, 1e-13)
+        _close(lb.columns(lk.n_dof), jnp.transpose(st.basis(), (1, 2, 3, 0)), 0.0)
     # a Legendre column is read on its mode's row; a custom basis's on every row
     assert precompute(rod).leaf_steps.compact.row == (1, 1, 1, 2, 2, 2)
     lb = precompute(two_divisions).leaf_steps.compact

@@ -227,26 +227,15 @@ def leaf_jacobians(data, rec: LeafRecord, J_chain):
     """The leaves' Jacobians ``(n, 6, n_dof)``: ``Ad(E)^-1 (J_c + T dOmega)``.
 
     ``J_chain``: each leaf's chain point's Jacobian ``(n, 6, n_dof)``. Every
-    quantity is a row over the coordinates and the leaves, ``(n_dof, n)``; the
-    columns of the bases come from :class:`~sorojax.model._precompute.LeafBasis`
-    (zero rows where a strain row has none), ``dOmega`` as in :func:`leaf_rates`.
+    quantity is a row over the coordinates and the leaves, ``(n_dof, n)``: the
+    bases' columns (:meth:`~sorojax.model._precompute.LeafBasis.columns`),
+    ``dOmega`` as in :func:`leaf_rates`.
     """
     st = data.leaf_steps
-    lb = st.compact
-    n_dof, n = data.n_dof, rec.xi.shape[-1]
     one = _run_time_one(rec.xi)
-    zero = jnp.zeros((n_dof, n), rec.xi.dtype)
-    P = [[zero] * 6 for _ in range(rec.xi.shape[0])]  # nodes x strain rows
-    for s, r in enumerate(lb.row):
-        for z in range(len(P)):
-            col = zero
-            for (a, b), j in zip(lb.segments, lb.dof[s], strict=True):
-                if j >= 0:
-                    col = col.at[j, a:b].set(lb.values[s, z, a:b])
-            P[z][r] = P[z][r] + col
+    P1, P2 = st.compact.columns(data.n_dof)  # (6, n_dof, n) at each node
     x1, x2 = rec.xi[0][:, None], rec.xi[1][:, None]  # (6, 1, n) against (n_dof, n)
     h, c = st.h[None, None], st.c[None, None]
-    P1, P2 = jnp.stack(P[0]), jnp.stack(P[1])
     dO = 0.5 * h * (P1 + P2) + c * (_stacked(_ad(x1, P2)) - _stacked(_ad(x2, P1)))
     dO = _kept(dO, one)
     Ts, Q, R, p = (m[..., None, :] for m in (rec.Ts, rec.Q, rec.R, rec.p))

@@ -169,6 +169,24 @@ class LeafBasis(eqx.Module):
         xi = jnp.stack([zero if t is None else t for t in per_row], axis=1)
         return xi if xi_ref is None else xi + xi_ref
 
+    def columns(self, n_dof: int):
+        """The bases' columns at each node, ``(n_nodes, 6, n_dof, n_leaves)``.
+
+        Built from the entries (zero where a column has none); faster to form than
+        to read the full-width ``Phi_t`` transposed.
+        """
+        nz, n = self.values.shape[1:]
+        zero = jnp.zeros((n_dof, n), self.values.dtype)
+        P = [[zero] * 6 for _ in range(nz)]
+        for s, r in enumerate(self.row):
+            for z in range(nz):
+                col = zero
+                for (a, b), j in zip(self.segments, self.dof[s], strict=True):
+                    if j >= 0:
+                        col = col.at[j, a:b].set(self.values[s, z, a:b])
+                P[z][r] = P[z][r] + col
+        return jnp.stack([jnp.stack(rows) for rows in P])
+
     def transpose(self, Z, n_dof: int):
         """``sum Phi^T Z`` over the leaves' nodes for covectors ``Z``.
 
@@ -284,12 +302,8 @@ class StepData(eqx.Module):
         if self.Phi_z is not None:
             xi = jnp.einsum("szan,n->sza", self.Phi_z, x)
             return xi + self.xi_ref_z if ref else xi
-        return jnp.transpose(self.strains_last(x, ref), (2, 0, 1))
-
-    def strains_last(self, x, ref: bool = True):
-        """:meth:`strains` with the step axis last: ``(n_nodes, 6, n_steps)``."""
         xi = (x @ self.Phi_t).reshape(self.xi_ref_t.shape)
-        return xi + self.xi_ref_t if ref else xi
+        return jnp.transpose(xi + self.xi_ref_t if ref else xi, (2, 0, 1))
 
     def basis(self, V=None):
         """``Phi_z`` ``(n_steps, n_nodes, 6, n_dof)``, or ``Phi_z V`` (k columns)."""
@@ -305,11 +319,7 @@ class StepData(eqx.Module):
         """``sum_s Phi_z[s]^T Z[s]`` for node covectors ``Z`` (n_steps, n_nodes, 6)."""
         if self.Phi_z is not None:
             return jnp.einsum("szan,sza->n", self.Phi_z, Z)
-        return self.basis_transpose_last(jnp.transpose(Z, (1, 2, 0)))
-
-    def basis_transpose_last(self, Z):
-        """:meth:`basis_transpose` of ``Z`` ``(n_nodes, 6, n_steps)`` (leaves)."""
-        return self.Phi_t @ Z.reshape(-1)
+        return self.Phi_t @ jnp.transpose(Z, (1, 2, 0)).reshape(-1)
 
 
 def _step_data(links: list, n: int, order: int, leaves: bool = False) -> StepData:
