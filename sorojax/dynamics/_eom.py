@@ -24,6 +24,7 @@ from .._jit import jit
 from ..kinematics._api import Kinematics, _as_q
 from ..kinematics._recursion import (
     PointRates,
+    chain_layout,
     jacobians_dot,
     point_jacobians,
     point_rates,
@@ -35,13 +36,14 @@ from ..model._checks import check_finite, is_concrete
 from ..model._linkage import Linkage
 from ..model._precompute import LinkageData, precompute
 from ._actuation import actuation_loads, effective_inputs
+from ._composite import composite_mass, uses_composite
 from ._constraints import (
     constraint_terms_from_kinematics,
 )
 from ._contact import contact_wrenches
 from ._external import custom_wrenches, gravity_wrenches, point_wrenches
 from ._mass import _gyroscopic, _mass_from_J
-from ._wrench_recursion import force_from_point_rates
+from ._wrench_recursion import force_from_point_rates, force_from_wrenches
 
 GeneralizedForce = Callable[[Array, Array, Array], ArrayLike]
 """``tau(t, q, qd) -> (n_dof,)`` generalised actuation force added to the right side."""
@@ -149,11 +151,19 @@ def _added_mass(linkage: Linkage, data: LinkageData, idx) -> Array | None:
 
 
 def mass_matrix(linkage: Linkage, data: LinkageData, rates: PointRates) -> Array:
-    """``M`` from the chain points' Jacobians, the linkage's added mass included."""
-    row = rows_of(data, rates)
-    M = _mass_from_J(data, rates.J, row)
+    """``M``, the linkage's added mass included.
+
+    From composite inertias (:mod:`sorojax.dynamics._composite`) where the
+    coordinates come in :data:`~sorojax.dynamics._composite.MIN_GROUPS` groups or
+    more, else from the chain points' Jacobians.
+    """
     idx = np.asarray(data.mass_points, dtype=int)
     Ma = _added_mass(linkage, data, idx)
+    if uses_composite(data):
+        k, ct = rates.records
+        return composite_mass(data, k, ct, chain_layout(data), Ma)
+    row = rows_of(data, rates)
+    M = _mass_from_J(data, rates.J, row)
     if Ma is None:
         return M
     J_m = rates.J[row[idx]]
@@ -190,7 +200,6 @@ def mass_and_force(
     row = rows_of(data, rates)
     idx = np.asarray(data.mass_points, dtype=int)
     rows = row[idx]  # the mass points' rows in J
-    J_m = rates.J[rows]
     Mw = data.point_weight[idx, None, None] * data.point_M[idx]
     W_m = gravity_wrenches(data, g[idx], idx) - _gyroscopic(
         Mw, eta[idx], rates.etadot[rows]
@@ -209,7 +218,15 @@ def mass_and_force(
         Qa, Wa = actuation_loads(linkage, data, t, q, qd, u, kin_fn, g)
         if Wa is not None:
             W = W + Wa
-    f = force_from_point_rates(data, rates, W) + jnp.einsum("pai,pa->i", J_m, W_m)
+    if uses_composite(data):  # no Jacobian: every wrench by the backward sweep
+        lay = chain_layout(data)
+        at = np.full(W.shape[0], len(idx))
+        at[idx] = np.arange(len(idx))
+        W = W + jnp.concatenate([W_m, jnp.zeros_like(W_m[:1])])[at]
+        f = force_from_wrenches(data, (*rates.records, lay, rates.leaves), W)
+    else:
+        J_m = rates.J[rows]
+        f = force_from_point_rates(data, rates, W) + jnp.einsum("pai,pa->i", J_m, W_m)
     f = f - data.K @ q - data.D @ qd
     if u is not None:
         f = f + Qa

@@ -140,7 +140,14 @@ def step_jacobians(data: LinkageData, k: Steps, V, st=None) -> Array:
     ``st``: the steps ``k`` were made from (default ``data.steps``).
     """
     st = data.steps if st is None else st
-    P = st.basis(V)
+    return dOmega(st, k, st.basis(V))
+
+
+def dOmega(st, k: Steps, P) -> Array:
+    """``dOmega P`` of the steps ``st`` (made into ``k``): ``(n_steps, 6, cols)``.
+
+    ``P``: bases at the steps' nodes, ``(n_steps, n_nodes, 6, cols)``.
+    """
     if st.order == 6:
         dO = magnus6_apply(k.xi, st.h, jnp.swapaxes(P, -1, -2))
         return jnp.swapaxes(dO, -1, -2)
@@ -636,7 +643,9 @@ class PointRates(NamedTuple):
     _wrench_recursion.leaf_wrenches`); ``leaves``: the leaves' steps (a
     :class:`~sorojax.kinematics._leaves.LeafRecord` where those kernels apply),
     None when ``J`` and ``etadot`` have a row per point (no leaves;
-    :func:`point_jacobians` gives every point's ``J``).
+    :func:`point_jacobians` gives every point's ``J``); ``records``: the chain's
+    :class:`Steps` and :class:`ChainTerms` ``(k, ct)`` (for the mass matrix from
+    composite inertias and the backward wrench sweep).
     """
 
     g: Array
@@ -644,6 +653,7 @@ class PointRates(NamedTuple):
     J: Array
     etadot: Array
     leaves: Steps | None
+    records: tuple | None = None
 
 
 def rows_of(data: LinkageData, pr: PointRates) -> np.ndarray:
@@ -678,19 +688,24 @@ def point_rates(data: LinkageData, q, qd) -> PointRates:
     :func:`kinematics_and_rates` without the leaves' Jacobians and rates: a leaf
     costs its step, its pose and its twist.
     """
-    g, J, (eta, etadot), (_, _, lay) = _tree_pass(data, q, None, qd, core_only=True)
+    g, J, (eta, etadot), (k, ct, lay) = _tree_pass(data, q, None, qd, core_only=True)
     if _leaves.applies(data):  # many leaves: component by component
         g_l, eta_l, rec = _leaves.leaf_rates(data, lay, q, qd, g, eta)
         return PointRates(
-            with_leaves(lay, g, g_l), with_leaves(lay, eta, eta_l), J, etadot, rec
+            with_leaves(lay, g, g_l),
+            with_leaves(lay, eta, eta_l),
+            J,
+            etadot,
+            rec,
+            (k, ct),
         )
     kl = leaf_steps(data, q, many=False)  # in dynamics: derivatives of one tangent
     if kl is None:
-        return PointRates(g, eta, J, etadot, None)
+        return PointRates(g, eta, J, etadot, None, (k, ct))
     Od = step_rates(data.leaf_steps, kl, qd)
     eta_l = to_step_end(kl.R, kl.p, eta[lay.leaf_row] + _tangent_apply(kl.T, Od))
     g_all = with_leaves(lay, g, leaf_poses(lay, g, kl))
-    return PointRates(g_all, with_leaves(lay, eta, eta_l), J, etadot, kl)
+    return PointRates(g_all, with_leaves(lay, eta, eta_l), J, etadot, kl, (k, ct))
 
 
 def rest_rates(data: LinkageData, q) -> PointRates:
@@ -700,12 +715,12 @@ def rest_rates(data: LinkageData, q) -> PointRates:
     loops' constraint rows at a configuration (the projection of a start's
     velocities), without the rates' columns.
     """
-    g, J, _, (_, _, lay) = _tree_pass(data, q, None, None, core_only=True)
+    g, J, _, (k, ct, lay) = _tree_pass(data, q, None, None, core_only=True)
     kl = leaf_steps(data, q)
     if kl is not None:
         g = with_leaves(lay, g, leaf_poses(lay, g, kl))
     z = jnp.zeros((g.shape[0], 6), q.dtype)
-    return PointRates(g, z, J, z[: J.shape[0]], kl)
+    return PointRates(g, z, J, z[: J.shape[0]], kl, (k, ct))
 
 
 def _tree_pass(data: LinkageData, q, V, qd, core_only: bool = False):

@@ -255,6 +255,95 @@ def _leaf_basis(divisions) -> LeafBasis:
     )
 
 
+class GroupBasis(eqx.Module):
+    """The chain steps' bases on their own group's columns (several groups).
+
+    A step acts through the coordinates of one group (a joint's, or a division's),
+    so its basis is ``(n_nodes, 6, width)`` on those columns where the full-width
+    ``Phi_z`` has ``n_dof``: products with the bases cost O(steps x width) instead
+    of O(steps x n_dof), which is O(n_dof^2) for a rod of many divisions.
+
+    Attributes:
+        values: ``(n_steps, n_nodes, 6, width)`` the bases (zero past a group's
+            width).
+        cols: ``(n_steps, width)`` each entry's column (``n_dof``: padding), static.
+        segments: ``((first, stop), ...)`` each group's steps (contiguous), static.
+        src: ``(n_dof,)`` each column's entry in the flat ``(n_groups x width)``
+            group sums (``n_groups x width``: none), static.
+    """
+
+    values: Float[Array, "n_steps n_nodes 6 width"]
+    cols: tuple[tuple[int, ...], ...] = eqx.field(static=True)
+    segments: tuple[tuple[int, int], ...] = eqx.field(static=True)
+    src: tuple[int, ...] = eqx.field(static=True)
+
+    def coordinates(self, x):
+        """``(n_steps, width)``: each step's group's entries of ``x`` (zero padded)."""
+        return jnp.concatenate([x, jnp.zeros(1, x.dtype)])[np.array(self.cols)]
+
+    def strains(self, x):
+        """``(n_steps, n_nodes, 6)``: the bases times ``x`` (no reference strain)."""
+        return jnp.einsum("szak,sk->sza", self.values, self.coordinates(x))
+
+    def transpose(self, Z):
+        """``sum_s Phi[s]^T Z[s]`` for node covectors ``Z`` ``(n_steps, n_nodes, 6)``.
+
+        Each step's covector on its group's columns, summed over the group's steps
+        (a difference of prefix sums) and gathered into the coordinates: no scatter.
+        """
+        y = jnp.einsum("szak,sza->sk", self.values, Z)
+        c = jnp.concatenate([jnp.zeros_like(y[:1]), jnp.cumsum(y, axis=0)])
+        first, stop = (np.array(x, int) for x in zip(*self.segments, strict=True))
+        flat = (c[stop] - c[first]).reshape(-1)
+        return jnp.concatenate([flat, jnp.zeros(1, y.dtype)])[np.array(self.src)]
+
+
+MIN_GROUPS = 2
+"""Fewest coordinate groups (joints with coordinates, divisions with steps) for
+which the chain's steps keep :class:`GroupBasis` and the dynamics forms the mass
+matrix from composite inertias (:mod:`sorojax.dynamics._composite`); with one
+group the full-width products cost the same."""
+
+
+def _group_basis(links: list, n: int, nz: int) -> GroupBasis | None:
+    """:class:`GroupBasis` of the chain's steps, in :func:`_step_data`'s order.
+
+    None below :data:`MIN_GROUPS` groups.
+    """
+    parts = []  # (bases (m, nz, 6, k), first column)
+    for ld in links:
+        jn = ld.joint_Phi.shape[1]
+        if jn:
+            parts.append(
+                (jnp.broadcast_to(ld.joint_Phi, (1, nz, 6, jn)), ld.joint_offset)
+            )
+        for dd in ld.divisions if ld.soft else ():
+            if dd.h.shape[0]:
+                parts.append((dd.Phi_z, dd.offset))
+    if sum(P.shape[3] > 0 for P, _ in parts) < MIN_GROUPS:
+        return None
+    width = max(P.shape[3] for P, _ in parts)
+    values, cols, segments, src, start = [], [], [], np.full(n, -1), 0
+    for g, (P, o) in enumerate(parts):
+        m, k = P.shape[0], P.shape[3]
+        values.append(jnp.pad(P, ((0, 0), (0, 0), (0, 0), (0, width - k))))
+        cols.append(
+            np.broadcast_to(
+                np.where(np.arange(width) < k, o + np.arange(width), n), (m, width)
+            )
+        )
+        segments.append((start, start + m))
+        src[o : o + k] = g * width + np.arange(k)
+        start += m
+    src[src < 0] = len(parts) * width
+    return GroupBasis(
+        values=jnp.concatenate(values),
+        cols=tuple(map(tuple, np.concatenate(cols).tolist())),
+        segments=tuple(segments),
+        src=tuple(src.tolist()),
+    )
+
+
 class StepData(eqx.Module):
     """Every Magnus step of the linkage in one batch, full column width.
 
@@ -283,6 +372,8 @@ class StepData(eqx.Module):
         xi_ref_t: (n_nodes, 6, n_steps) the reference strains (leaves only).
         compact: the leaves' bases by their nonzero entries (4th-order leaves only,
             else None): :class:`LeafBasis`.
+        group: the chain steps' bases on their groups' columns (at least
+            :data:`MIN_GROUPS` groups, else None): :class:`GroupBasis`.
     """
 
     order: int = eqx.field(static=True)
@@ -293,12 +384,16 @@ class StepData(eqx.Module):
     Phi_t: Float[Array, "n_dof n_basis"] | None = None
     xi_ref_t: Float[Array, "n_nodes 6 n_steps"] | None = None
     compact: LeafBasis | None = None
+    group: GroupBasis | None = None
 
     def strains(self, x, ref: bool = True):
         """Strains ``(n_steps, n_nodes, 6)`` at the nodes for coordinates ``x``.
 
         ``ref``: with the reference strains (``False``: the rates for ``x = qd``).
         """
+        if self.group is not None:
+            xi = self.group.strains(x)
+            return xi + self.xi_ref_z if ref else xi
         if self.Phi_z is not None:
             xi = jnp.einsum("szan,n->sza", self.Phi_z, x)
             return xi + self.xi_ref_z if ref else xi
@@ -317,6 +412,8 @@ class StepData(eqx.Module):
 
     def basis_transpose(self, Z):
         """``sum_s Phi_z[s]^T Z[s]`` for node covectors ``Z`` (n_steps, n_nodes, 6)."""
+        if self.group is not None:
+            return self.group.transpose(Z)
         if self.Phi_z is not None:
             return jnp.einsum("szan,sza->n", self.Phi_z, Z)
         return self.Phi_t @ jnp.transpose(Z, (1, 2, 0)).reshape(-1)
@@ -380,6 +477,7 @@ def _step_data(links: list, n: int, order: int, leaves: bool = False) -> StepDat
         c=jnp.concatenate(c),
         Phi_z=jnp.concatenate(Phi_z),
         xi_ref_z=jnp.concatenate(xr),
+        group=_group_basis(links, n, nz),
     )
 
 

@@ -1,0 +1,204 @@
+"""The mass matrix from composite inertias, without the points' Jacobians.
+
+``M = sum_p w_p J_p^T M_p J_p`` costs O(points x 6 x n_dof^2) from the Jacobians.
+The coordinates come in groups, a joint's or a division's, each acting through its
+own steps only. In the frame of a link's chain start (pose ``G_a`` of point a
+relative to it) a point's Jacobian is ``Ad(G_a) J_a = J0 + sum_{b<a} S_b``, with
+``S_b = Ad(G_b) T_b dOmega_b`` nonzero on the columns of step b's group only, and
+``J0`` the chain start's Jacobian (its parent's tip's; zero at the ground). With the
+points' inertias in that frame, ``Mh_p = Ad(G_p)^-T w_p M_p Ad(G_p)^-1``:
+
+* a point inside group g (after some of its steps) sees the partial sum
+  ``C_p = sum_{b<a, b in g} S_b`` of g's steps; a point past g sees all of them,
+  ``D_g``, whatever it is (a point, a later group's, a descendant link's);
+* the diagonal block of g is ``sum_{p in g} C_p^T Mh_p C_p + D_g^T I_g D_g`` with
+  ``I_g`` the composite inertia past g (the sum of every later point's ``Mh``,
+  descendant links' carried from their start);
+* the columns of g against every earlier column are ``Jstart_g^T P_g`` with
+  ``P_g = sum_{p in g} Mh_p C_p + I_g D_g`` and ``Jstart_g = J0 + sum_{g' < g}
+  D_{g'}`` the chain-frame Jacobian where g starts (later columns: zero).
+
+Cost: O(points x 6 x k^2) for groups of k columns, O(groups x 6 x n_dof) for the
+start Jacobians and O(n_dof^2) to assemble M, where the Jacobians' product is
+O(points x 6 x n_dof^2): the pile's 111-DoF rope of ten divisions (122 mass points),
+for instance.
+"""
+
+from typing import NamedTuple
+
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array
+
+from ..kinematics._recursion import ChainLayout, Steps, _Ad, chain_layout, dOmega
+from ..model._precompute import LinkageData, lock_padding
+
+
+class GroupLayout(NamedTuple):
+    """Static layout of the coordinate groups (numpy, from shapes only).
+
+    ``link``, ``slot0``, ``slot1`` ``(n_groups,)``: each group's link and its steps'
+    slots ``[slot0, slot1)`` in the link's chain; ``step0`` its first step in
+    :class:`~sorojax.model._precompute.StepData` order; ``col``
+    ``(n_groups, width)``: its columns (-1: padding); ``mass_group`` ``(n_mass,)``
+    the group each mass point is inside (-1: none) and ``mass_step``
+    ``(n_mass,)`` the end of its partial sum (an index into the steps' prefix sums);
+    ``after`` ``(n_groups, n_mass)`` 1 where a mass point lies past the group;
+    ``before`` ``(n_groups, n_groups)`` 1 where a group precedes another in one
+    chain; ``src`` ``(n_dof,)`` each column's entry in the flat ``(n_groups x
+    width)`` blocks (``n_groups x width``: none).
+    """
+
+    link: np.ndarray
+    slot0: np.ndarray
+    slot1: np.ndarray
+    step0: np.ndarray
+    col: np.ndarray
+    mass_group: np.ndarray
+    mass_step: np.ndarray
+    after: np.ndarray
+    before: np.ndarray
+    src: np.ndarray
+
+
+def group_layout(data: LinkageData) -> GroupLayout:
+    """The :class:`GroupLayout` of ``data`` (walks the chains as ``chain_layout``)."""
+    return _group_layout(data, chain_layout(data))
+
+
+def _group_layout(data: LinkageData, lay: ChainLayout) -> GroupLayout:
+    groups = []  # (link, slot0, slot1, step0, col0, width)
+    s = 0
+    for i, ld in enumerate(data.links):
+        slot = 1  # after the placement
+        nj = ld.joint_Phi.shape[1]
+        if nj:
+            groups.append((i, slot, slot + 1, s, ld.joint_offset, nj))
+            slot += 1
+            s += 1
+        slot += 1  # g_i
+        for dd in ld.divisions if ld.soft else ():
+            m = dd.h.shape[0]
+            if m and dd.n_dof:
+                groups.append((i, slot, slot + m, s, dd.offset, dd.n_dof))
+            slot += m
+            s += m
+    link, slot0, slot1, step0, col0, width = (
+        np.array(x, int) for x in zip(*groups, strict=True)
+    )
+    K = int(width.max())
+    col = np.where(np.arange(K) < width[:, None], col0[:, None] + np.arange(K), -1)
+    idx = np.asarray(data.mass_points, int)
+    rows = lay.row[idx]
+    assert (rows >= 0).all(), "a leaf carries mass"
+    pl, ps = lay.point_link[rows], lay.point_slot[rows]
+    # a point at prefix a is inside the group of the step before it (slot a - 1)
+    inside = (pl[:, None] == link) & (ps[:, None] > slot0) & (ps[:, None] <= slot1)
+    mass_group = np.where(inside.any(1), inside.argmax(1), -1)
+    g = np.maximum(mass_group, 0)
+    mass_step = np.where(mass_group >= 0, step0[g] + ps - slot0[g], 0)
+    after = ((pl[:, None] == link) & (ps[:, None] > slot1)).T.astype(float)
+    n_g = len(link)
+    before = (link[:, None] == link) & (np.arange(n_g)[:, None] < np.arange(n_g))
+    src = np.full(data.n_dof, n_g * K)
+    for gi in range(n_g):
+        src[col0[gi] : col0[gi] + width[gi]] = gi * K + np.arange(width[gi])
+    return GroupLayout(
+        link, slot0, slot1, step0, col, mass_group, mass_step, after,
+        before.astype(float), src,
+    )  # fmt: skip
+
+
+def uses_composite(data: LinkageData) -> bool:
+    """Whether the dynamics forms M from composite inertias (static).
+
+    Where the chain's steps have :class:`~sorojax.model._precompute.GroupBasis`
+    (at least :data:`~sorojax.model._precompute.MIN_GROUPS` coordinate groups).
+    """
+    return data.steps.group is not None
+
+
+def composite_mass(
+    data: LinkageData, k: Steps, ct, lay: ChainLayout, added=None
+) -> Array:
+    """``M`` from composite inertias (module docstring).
+
+    ``k``, ``ct``: the chain's steps and :class:`~sorojax.kinematics._recursion.
+    ChainTerms` (poses relative to each chain's start) at the configuration;
+    ``added``: ``(n_mass, 6, 6)`` added inertia of the mass points (weighted), or
+    None.
+    """
+    gl = _group_layout(data, lay)
+    n_g, K = gl.col.shape
+    dtype = k.R.dtype
+    # every step's S_b on its group's columns, in its chain's frame
+    dO = dOmega(data.steps, k, data.steps.group.values)  # (n_steps, 6, K)
+    sl, ss = lay.step_link, lay.step_slot
+    S = _Ad(ct.RG[sl, ss], ct.pG[sl, ss]) @ (k.T @ dO)
+    cum = jnp.concatenate([jnp.zeros_like(S[:1]), jnp.cumsum(S, axis=0)])
+    D = cum[gl.step0 + gl.slot1 - gl.slot0] - cum[gl.step0]  # (n_g, 6, K)
+    # the mass points' inertias in their chain's frame, and their partial sums
+    idx = np.asarray(data.mass_points, int)
+    rows = lay.row[idx]
+    pl, ps = lay.point_link[rows], lay.point_slot[rows]
+    Gi = ct.Ginv[pl, ps]
+    Mw = data.point_weight[idx, None, None] * data.point_M[idx]
+    if added is not None:
+        Mw = Mw + added
+    Mh = jnp.swapaxes(Gi, 1, 2) @ Mw @ Gi
+    g = np.maximum(gl.mass_group, 0)
+    C = cum[gl.mass_step] - cum[gl.step0[g]]
+    C = C * jnp.asarray(gl.mass_group >= 0, dtype)[:, None, None]
+    MC = Mh @ C
+    one = jnp.asarray(np.arange(n_g)[:, None] == gl.mass_group, dtype)
+    P_in = jnp.einsum("gp,pak->gak", one, MC)
+    CMC = jnp.sum(C[..., :, None] * MC[..., None, :], axis=1)  # (n_mass, K, K)
+    B_in = (one @ CMC.reshape(len(idx), K * K)).reshape(n_g, K, K)
+    # composite inertia past each group: its link's later points, its descendants
+    I_past = jnp.einsum("gp,pab->gab", jnp.asarray(gl.after, dtype), Mh)
+    n_links = len(data.links)
+    tree = any(ld.parent for ld in data.links)
+    if tree:
+        own = jnp.einsum(
+            "lp,pab->lab", jnp.asarray(np.arange(n_links)[:, None] == pl, dtype), Mh
+        )
+        Gt = ct.Ginv[np.arange(n_links), lay.tip_slot]
+        desc = [jnp.zeros((6, 6), dtype) for _ in range(n_links)]
+        for i in range(n_links - 1, -1, -1):
+            parent = data.links[i].parent
+            if parent:
+                Gp = Gt[parent - 1]
+                desc[parent - 1] = desc[parent - 1] + Gp.T @ (own[i] + desc[i]) @ Gp
+        I_past = I_past + jnp.stack(desc)[gl.link]
+    ID = I_past @ D
+    P = P_in + ID
+    B = B_in + jnp.einsum("gak,gal->gkl", D, ID)
+    # block (h, g): group h's columns of the chain-frame Jacobian where g starts
+    # (D_h for an earlier group of g's chain, carried from an ancestor link's tip)
+    Jst = jnp.asarray(gl.before, dtype)[:, :, None, None] * D[:, None]  # (h, g)
+    if tree:
+        in_link = np.arange(n_links)[:, None] == gl.link
+        X = [jnp.zeros((n_g, 6, K), dtype) for _ in range(n_links)]
+        for i, ld in enumerate(data.links):
+            if ld.parent:
+                p = ld.parent - 1
+                own_D = jnp.asarray(in_link[p], dtype)[:, None, None] * D
+                X[i] = jnp.einsum("ab,hbk->hak", Gt[p], X[p] + own_D)
+        Jst = Jst + jnp.swapaxes(jnp.stack(X)[gl.link], 0, 1)
+    U = jnp.einsum("hgak,gal->hgkl", Jst, P)
+    blocks = U + jnp.swapaxes(U, 0, 1).swapaxes(2, 3)
+    blocks = blocks + jnp.eye(n_g, dtype=dtype)[:, :, None, None] * B[None]
+    flat = jnp.concatenate([blocks.reshape(-1), jnp.zeros(1, dtype)])
+    M = flat[_block_index(gl.src, n_g, K)]
+    return lock_padding(0.5 * (M + M.T), data.locked)
+
+
+def _block_index(src: np.ndarray, n_g: int, K: int) -> np.ndarray:
+    """Each ``(i, j)``'s entry in the flat ``(n_g, n_g, K, K)`` blocks.
+
+    Their size (the appended zero) where a column lies outside every group.
+    """
+    g, c = np.divmod(src, K)
+    idx = ((g[:, None] * n_g + g[None]) * K + c[:, None]) * K + c[None]
+    none = (src[:, None] >= n_g * K) | (src[None] >= n_g * K)
+    return np.where(none, n_g * n_g * K * K, idx)
