@@ -113,7 +113,8 @@ def uses_composite(data: LinkageData) -> bool:
     """Whether the dynamics forms M from composite inertias (static).
 
     Where the chain's steps have :class:`~sorojax.model._precompute.GroupBasis`
-    (at least :data:`~sorojax.model._precompute.MIN_GROUPS` coordinate groups).
+    (:data:`~sorojax.model._precompute.MIN_GROUPS` coordinate groups and
+    :data:`~sorojax.model._precompute.MIN_GROUP_DOF` coordinates or more).
     """
     return data.steps.group is not None
 

@@ -153,9 +153,9 @@ def _added_mass(linkage: Linkage, data: LinkageData, idx) -> Array | None:
 def mass_matrix(linkage: Linkage, data: LinkageData, rates: PointRates) -> Array:
     """``M``, the linkage's added mass included.
 
-    From composite inertias (:mod:`sorojax.dynamics._composite`) where the
-    coordinates come in :data:`~sorojax.dynamics._composite.MIN_GROUPS` groups or
-    more, else from the chain points' Jacobians.
+    From composite inertias (:mod:`sorojax.dynamics._composite`) where the chain's
+    steps have :class:`~sorojax.model._precompute.GroupBasis` (many coordinates in
+    several groups), else from the chain points' Jacobians.
     """
     idx = np.asarray(data.mass_points, dtype=int)
     Ma = _added_mass(linkage, data, idx)

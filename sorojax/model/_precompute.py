@@ -304,11 +304,20 @@ which the chain's steps keep :class:`GroupBasis` and the dynamics forms the mass
 matrix from composite inertias (:mod:`sorojax.dynamics._composite`); with one
 group the full-width products cost the same."""
 
+MIN_GROUP_DOF = 24
+"""Fewest coordinates for :class:`GroupBasis`, which also needs the widest group to
+hold at most half of them. One evaluation of a free rod of order-3 divisions (11
+coordinates each) on a floor, 2-core CPU: 17 coordinates (2 groups) 61-64 against
+54-57 us the Jacobians' way, 28: 107-112 against 126-131, 61: 319-327 against
+552-573, 116: 686-760 against 2387; the crawler's 6 coordinates and their forward
+derivatives ran 10-20 % slower."""
+
 
 def _group_basis(links: list, n: int, nz: int) -> GroupBasis | None:
     """:class:`GroupBasis` of the chain's steps, in :func:`_step_data`'s order.
 
-    None below :data:`MIN_GROUPS` groups.
+    None below :data:`MIN_GROUPS` groups or :data:`MIN_GROUP_DOF` coordinates, or
+    where one group holds more than half of the coordinates.
     """
     parts = []  # (bases (m, nz, 6, k), first column)
     for ld in links:
@@ -320,9 +329,13 @@ def _group_basis(links: list, n: int, nz: int) -> GroupBasis | None:
         for dd in ld.divisions if ld.soft else ():
             if dd.h.shape[0]:
                 parts.append((dd.Phi_z, dd.offset))
-    if sum(P.shape[3] > 0 for P, _ in parts) < MIN_GROUPS:
+    width = max((P.shape[3] for P, _ in parts), default=0)
+    if (
+        sum(P.shape[3] > 0 for P, _ in parts) < MIN_GROUPS
+        or n < MIN_GROUP_DOF
+        or 2 * width > n
+    ):
         return None
-    width = max(P.shape[3] for P, _ in parts)
     values, cols, segments, src, start = [], [], [], np.full(n, -1), 0
     for g, (P, o) in enumerate(parts):
         m, k = P.shape[0], P.shape[3]
@@ -373,7 +386,8 @@ class StepData(eqx.Module):
         compact: the leaves' bases by their nonzero entries (4th-order leaves only,
             else None): :class:`LeafBasis`.
         group: the chain steps' bases on their groups' columns (at least
-            :data:`MIN_GROUPS` groups, else None): :class:`GroupBasis`.
+            :data:`MIN_GROUPS` groups and :data:`MIN_GROUP_DOF` coordinates, else
+            None): :class:`GroupBasis`.
     """
 
     order: int = eqx.field(static=True)
