@@ -151,10 +151,18 @@ def composite_mass(
     C = cum[gl.mass_step] - cum[gl.step0[g]]
     C = C * jnp.asarray(gl.mass_group >= 0, dtype)[:, None, None]
     MC = Mh @ C
-    one = jnp.asarray(np.arange(n_g)[:, None] == gl.mass_group, dtype)
-    P_in = jnp.einsum("gp,pak->gak", one, MC)
-    CMC = jnp.sum(C[..., :, None] * MC[..., None, :], axis=1)  # (n_mass, K, K)
-    B_in = (one @ CMC.reshape(len(idx), K * K)).reshape(n_g, K, K)
+    # each group's points side by side (padded by a zero row): one product a group
+    members = [np.flatnonzero(gl.mass_group == i) for i in range(n_g)]
+    width = max(1, max(len(m) for m in members))
+    at = np.full((n_g, width), len(idx))
+    for i, m in enumerate(members):
+        at[i, : len(m)] = m
+    Cg, MCg = (
+        jnp.concatenate([x, jnp.zeros_like(x[:1])])[at].reshape(n_g, width * 6, K)
+        for x in (C, MC)
+    )
+    P_in = jnp.sum(MCg.reshape(n_g, width, 6, K), axis=1)
+    B_in = jnp.einsum("gxk,gxl->gkl", Cg, MCg)
     # composite inertia past each group: its link's later points, its descendants
     I_past = jnp.einsum("gp,pab->gab", jnp.asarray(gl.after, dtype), Mh)
     n_links = len(data.links)
@@ -186,12 +194,12 @@ def composite_mass(
                 own_D = jnp.asarray(in_link[p], dtype)[:, None, None] * D
                 X[i] = jnp.einsum("ab,hbk->hak", Gt[p], X[p] + own_D)
         Jst = Jst + jnp.swapaxes(jnp.stack(X)[gl.link], 0, 1)
+    # the blocks above the diagonal and half of the diagonal ones; M = U + U^T
     U = jnp.einsum("hgak,gal->hgkl", Jst, P)
-    blocks = U + jnp.swapaxes(U, 0, 1).swapaxes(2, 3)
-    blocks = blocks + jnp.eye(n_g, dtype=dtype)[:, :, None, None] * B[None]
-    flat = jnp.concatenate([blocks.reshape(-1), jnp.zeros(1, dtype)])
+    U = U + jnp.eye(n_g, dtype=dtype)[:, :, None, None] * (0.5 * B)
+    flat = jnp.concatenate([U.reshape(-1), jnp.zeros(1, dtype)])
     M = flat[_block_index(gl.src, n_g, K)]
-    return lock_padding(0.5 * (M + M.T), data.locked)
+    return lock_padding(M + M.T, data.locked)
 
 
 def _block_index(src: np.ndarray, n_g: int, K: int) -> np.ndarray:
