@@ -196,7 +196,7 @@ def composite_mass(
         Jst = Jst + jnp.swapaxes(jnp.stack(X)[gl.link], 0, 1)
     # the blocks above the diagonal and half of the diagonal ones; M = U + U^T
     U = jnp.einsum("hgak,gal->hgkl", Jst, P)
-    U = U + jnp.eye(n_g, dtype=dtype)[:, :, None, None] * (0.5 * B)
+    U = U + jnp.eye(n_g, dtype=dtype)[:, :, None, None] * (0.5 * B)[None]
     flat = jnp.concatenate([U.reshape(-1), jnp.zeros(1, dtype)])
     M = flat[_block_index(gl.src, n_g, K)]
     return lock_padding(M + M.T, data.locked)
