@@ -21,11 +21,15 @@ Scenes:
   without contact and with 10, 100 and 1000 floor samples;
 * ``grasp``: ``examples/grasp.py``'s gripper (13 DoF: a prescribed palm, two cable-
   driven fingers, a free ball; contact with the floor and between the fingers and the
-  ball), at rest with the fingers closed by 0.2 N of tension.
+  ball), at rest with the fingers closed by 0.2 N of tension;
+* ``rope of 10 divisions``: a free 0.3 m rope of ten cubic divisions (torsion, both
+  bendings, linear stretch: 116 DoF, as cosseratbench's pile builds its rope), no
+  contact, slightly bent; its mass matrix from composite inertias (the default for
+  many coordinates in several groups) and again from the Jacobians (``Jacobians``).
 
 Parts (each a function of the previous part's outputs): ``kinematics`` (poses and
 twists of every point, Jacobians and twist rates at the chain's points, the leaves'
-steps), ``mass`` (M from the Jacobians), ``contact`` (geometry, law and body
+steps), ``mass`` (M from the Jacobians, or from composite inertias), ``contact`` (geometry, law and body
 wrenches), ``mapping`` (every point wrench to generalised forces, through the
 leaves' steps), ``solve`` (the Cholesky solve or, with prescribed joints, the
 saddle-point solve). ``flops`` are XLA's count for one call of a part
@@ -43,6 +47,7 @@ Writes ``benchmarks/results/evaluation.json``.
 """
 
 import argparse
+import contextlib
 import json
 import statistics
 import sys
@@ -59,6 +64,7 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 from _common import ROOT, environment  # noqa: E402
 
+from sorojax.dynamics._composite import composite_mass, uses_composite  # noqa: E402
 from sorojax.dynamics._contact import contact_wrenches  # noqa: E402
 from sorojax.dynamics._eom import (  # noqa: E402
     constrained_dynamics,
@@ -66,9 +72,13 @@ from sorojax.dynamics._eom import (  # noqa: E402
     spd_solve,
 )
 from sorojax.dynamics._mass import _mass_from_J  # noqa: E402
-from sorojax.dynamics._wrench_recursion import force_from_point_rates  # noqa: E402
+from sorojax.dynamics._wrench_recursion import (  # noqa: E402
+    force_from_point_rates,
+    force_from_wrenches,
+)
 from sorojax.kinematics._recursion import chain_layout, point_rates  # noqa: E402
-from sorojax.model._precompute import LinkageData, precompute  # noqa: E402
+from sorojax.model import _precompute  # noqa: E402
+from sorojax.model._precompute import LinkageData  # noqa: E402
 
 sys.path.insert(0, str(ROOT / "benchmarks"))
 sys.path.insert(0, str(ROOT / "examples"))
@@ -147,21 +157,43 @@ def _grasp_state():
 
 def scene_parts(name, lk, q, qd, u=None):
     """The parts of one evaluation as ``(label, function, arguments)``."""
-    data = precompute(lk)
+    data = _precompute._precompute(lk)  # uncached: MIN_GROUP_DOF as set now
     t = jnp.zeros(())
     pr = point_rates(data, q, qd)
-    rows = chain_layout(data).row
+    lay = chain_layout(data)
     W = jnp.ones((lk.n_points, 6))
+    if uses_composite(data):  # the rates' steps and chain terms, no Jacobian
+
+        def mass(d, pr):
+            return composite_mass(d, *pr.records, lay)
+
+        def kinematics(d, q, qd):
+            pr = point_rates(d, q, qd)
+            k, ct = pr.records
+            return pr.g, pr.eta, pr.etadot, k, ct._replace(relJ=None)
+
+    else:
+
+        def mass(d, pr):
+            return _mass_from_J(d, pr.J, lay.row)
+
+        kinematics = point_rates
     parts = [
-        ("kinematics", lambda d, q, qd: point_rates(d, q, qd), (data, q, qd)),
-        ("mass", lambda d, J: _mass_from_J(d, J, rows), (data, pr.J)),
+        ("kinematics", kinematics, (data, q, qd)),
+        ("mass", mass, (data, pr)),
     ]
     if lk.contact is not None:
         parts.append(
             ("contact", lambda g, eta: contact_wrenches(lk, t, g, eta), (pr.g, pr.eta))
         )
-    parts.append(("mapping", lambda d, pr, W: force_from_point_rates(d, pr, W),
-                  (data, pr, W)))  # fmt: skip
+    if uses_composite(data):
+
+        def mapping(d, pr, W):
+            return force_from_wrenches(d, (*pr.records, lay, pr.leaves), W)
+
+    else:
+        mapping = force_from_point_rates
+    parts.append(("mapping", mapping, (data, pr, W)))
     if u is None:
         M, f = mass_and_force(lk, data, t, q, qd)
         parts.append(("solve", spd_solve, (M, f)))
@@ -175,6 +207,8 @@ def scene_parts(name, lk, q, qd, u=None):
             return constrained_dynamics(lk, d, t, q, qd, lambda _: u).qdd
 
     parts.append(("evaluation", whole, (data, q, qd)))
+    if name.endswith("Jacobians"):  # forward_dynamics would reuse its compiled trace
+        return parts
     parts.append(("forward_dynamics", lambda q, qd: sj.forward_dynamics(lk, q, qd, u=u),
                   (q, qd)))  # fmt: skip
     return parts
@@ -193,7 +227,37 @@ def scenes(quick: bool):
         out.append((label, lk, jnp.zeros(lk.n_dof), jnp.full(lk.n_dof, 0.01), None))
     lk, q, u = _grasp_state()
     out.append(("grasp", lk, q, jnp.full(lk.n_dof, 0.01), u))
+    lk = rope(10)
+    q = 0.5 * jnp.sin(jnp.arange(lk.n_dof, dtype=float))
+    out.append(("rope of 10 divisions", lk, q, jnp.full(lk.n_dof, 0.01), None))
+    out.append(
+        ("rope of 10 divisions, Jacobians", lk, q, jnp.full(lk.n_dof, 0.01), None)
+    )
     return out
+
+
+def rope(n_div: int) -> sj.Linkage:
+    """A free rope of ``n_div`` cubic divisions (11 DoF each), as the pile's."""
+    basis = sj.LegendreBasis((1, 1, 1, 1, 0, 0), (0, 3, 3, 1, 0, 0))
+    sec = sj.CircularSection(0.005)
+    link = sj.SoftLink(
+        [sj.Division(0.3 / n_div, sec, basis) for _ in range(n_div)],
+        sj.Material(E=1e6, rho=1000.0, eta=1e3),
+        joint=sj.Joint("F"),
+    )
+    return sj.Linkage([link], gravity=(0.0, 0.0, -9.81))
+
+
+@contextlib.contextmanager
+def _jacobians(on: bool):
+    """The mass matrix from the Jacobians (composite inertias off) while ``on``."""
+    least = _precompute.MIN_GROUP_DOF
+    if on:
+        _precompute.MIN_GROUP_DOF = 10**9
+    try:
+        yield
+    finally:
+        _precompute.MIN_GROUP_DOF = least
 
 
 def main():
@@ -210,19 +274,8 @@ def main():
             n_samples = len(sj.contact_state(lk, q).link)
         row = dict(scene=name, n_dof=lk.n_dof, n_points=lk.n_points,
                    n_contacts=n_samples, parts={})  # fmt: skip
-        for label, fn, args in scene_parts(name, lk, q, qd, u):
-            n = 2000 if lk.n_points < 200 else 200
-            sec, comp, flops = per_call(fn, args, n, a.repeats)
-            row["parts"][label] = dict(us=sec * 1e6, flops=flops, compile_s=comp)
-            print(
-                f"{name:28s} {label:17s} {sec * 1e6:9.1f} us {flops / 1e3:9.1f} kflop"
-            )
-            if label == "forward_dynamics":  # also as a long run's program
-                sec, comp, flops = per_call(fn, args, n, a.repeats, long_run=True)
-                row["parts"]["forward_dynamics_long_run"] = dict(
-                    us=sec * 1e6, flops=flops, compile_s=comp
-                )
-                print(f"{name:28s} {'(long-run options)':17s} {sec * 1e6:9.1f} us")
+        with _jacobians(name.endswith("Jacobians")):
+            _scene_rows(name, lk, q, qd, u, row, a.repeats)
         ev = row["parts"]["evaluation"]
         row["floor_us"] = ev["flops"] / rate * 1e6
         print(f"{name:28s} floor (flops / rate) {row['floor_us']:.1f} us")
@@ -232,6 +285,21 @@ def main():
     out.parent.mkdir(exist_ok=True)
     out.write_text(json.dumps(res, indent=1))
     print(f"wrote {out}")
+
+
+def _scene_rows(name, lk, q, qd, u, row, repeats):
+    """Time every part of one scene into ``row["parts"]``."""
+    for label, fn, args in scene_parts(name, lk, q, qd, u):
+        n = 2000 if lk.n_points < 200 else 200
+        sec, comp, flops = per_call(fn, args, n, repeats)
+        row["parts"][label] = dict(us=sec * 1e6, flops=flops, compile_s=comp)
+        print(f"{name:28s} {label:17s} {sec * 1e6:9.1f} us {flops / 1e3:9.1f} kflop")
+        if label == "forward_dynamics":  # also as a long run's program
+            sec, comp, flops = per_call(fn, args, n, repeats, long_run=True)
+            row["parts"]["forward_dynamics_long_run"] = dict(
+                us=sec * 1e6, flops=flops, compile_s=comp
+            )
+            print(f"{name:28s} {'(long-run options)':17s} {sec * 1e6:9.1f} us")
 
 
 if __name__ == "__main__":

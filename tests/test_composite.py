@@ -88,8 +88,8 @@ def case(request):
     linkage = MODELS[request.param]()
     least = _precompute.MIN_GROUP_DOF
     _precompute.MIN_GROUP_DOF = 0
-    try:
-        data = precompute(linkage)
+    try:  # not the cached precompute: its trace of a structure is kept (per process)
+        data = _precompute._precompute(linkage)
     finally:
         _precompute.MIN_GROUP_DOF = least
     assert data.steps.group is not None  # several groups: the composite path

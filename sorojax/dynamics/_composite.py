@@ -195,19 +195,9 @@ def composite_mass(
                 X[i] = jnp.einsum("ab,hbk->hak", Gt[p], X[p] + own_D)
         Jst = Jst + jnp.swapaxes(jnp.stack(X)[gl.link], 0, 1)
     # the blocks above the diagonal and half of the diagonal ones; M = U + U^T
-    U = jnp.einsum("hgak,gal->hgkl", Jst, P)
-    U = U + jnp.eye(n_g, dtype=dtype)[:, :, None, None] * (0.5 * B)[None]
-    flat = jnp.concatenate([U.reshape(-1), jnp.zeros(1, dtype)])
-    M = flat[_block_index(gl.src, n_g, K)]
-    return lock_padding(M + M.T, data.locked)
-
-
-def _block_index(src: np.ndarray, n_g: int, K: int) -> np.ndarray:
-    """Each ``(i, j)``'s entry in the flat ``(n_g, n_g, K, K)`` blocks.
-
-    Their size (the appended zero) where a column lies outside every group.
-    """
-    g, c = np.divmod(src, K)
-    idx = ((g[:, None] * n_g + g[None]) * K + c[:, None]) * K + c[None]
-    none = (src[:, None] >= n_g * K) | (src[None] >= n_g * K)
-    return np.where(none, n_g * n_g * K * K, idx)
+    # rows (h, k), columns (g, l); a zero row and column for columns outside groups
+    U = jnp.einsum("hgak,gal->hkgl", Jst, P)
+    eye = jnp.eye(n_g, dtype=dtype)[:, None, :, None]
+    U = (U + eye * (0.5 * B)[:, :, None, :]).reshape(n_g * K, n_g * K)
+    U = jnp.pad(U, ((0, 1), (0, 1)))[gl.src][:, gl.src]
+    return lock_padding(U + U.T, data.locked)
