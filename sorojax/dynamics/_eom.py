@@ -6,7 +6,11 @@ Jdot matrix), and the poses and twists of the leaves (contact samples, one Magnu
 step each from their chain point); then M = sum w J^T M J over the points that carry
 mass, and every point force (inertial, gravity, point wrenches, contact, custom hook)
 is gathered as one body wrench per point and mapped by J^T (a leaf's wrench first
-crosses its step to its chain point). K and D are constant
+crosses its step to its chain point). With many coordinates in several groups
+(:class:`~sorojax.model._precompute.GroupBasis`) M comes from composite inertias
+(:mod:`sorojax.dynamics._composite`) and every wrench, the inertial ones included,
+from the backward sweep (:func:`~sorojax.dynamics._wrench_recursion.
+force_from_wrenches`): no point's Jacobian is formed. K and D are constant
 (precomputed once per solve, outside the integrator's loop).
 """
 
