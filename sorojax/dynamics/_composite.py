@@ -18,10 +18,12 @@ points' inertias in that frame, ``Mh_p = Ad(G_p)^-T w_p M_p Ad(G_p)^-1``:
   ``P_g = sum_{p in g} Mh_p C_p + I_g D_g`` and ``Jstart_g = J0 + sum_{g' < g}
   D_{g'}`` the chain-frame Jacobian where g starts (later columns: zero).
 
-Cost: O(points x 6 x k^2) for groups of k columns, O(groups x 6 x n_dof) for the
-start Jacobians and O(n_dof^2) to assemble M, where the Jacobians' product is
-O(points x 6 x n_dof^2): the pile's 111-DoF rope of ten divisions (122 mass points),
-for instance.
+Every block is ``(k, k)`` (groups padded to the widest): the start Jacobians are kept
+by blocks, ``(groups, groups, 6, k)``. Cost: O(points x 6 x k^2) for groups of k
+columns and O(groups^2 x 6 x k^2) for the blocks, gathered into M, where the
+Jacobians' product is O(points x 6 x n_dof^2): for cosseratbench's pile (a 111-DoF
+rope of ten divisions of 11 coordinates and a joint, 100 mass points) about 13x
+fewer flops.
 """
 
 from typing import NamedTuple
