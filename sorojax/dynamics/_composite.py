@@ -32,7 +32,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array
 
-from ..kinematics._recursion import ChainLayout, Steps, _Ad, chain_layout, dOmega
+from ..kinematics._recursion import ChainLayout, Steps, _Ad, dOmega
 from ..model._precompute import LinkageData, lock_padding
 
 
@@ -63,12 +63,8 @@ class GroupLayout(NamedTuple):
     src: np.ndarray
 
 
-def group_layout(data: LinkageData) -> GroupLayout:
-    """The :class:`GroupLayout` of ``data`` (walks the chains as ``chain_layout``)."""
-    return _group_layout(data, chain_layout(data))
-
-
 def _group_layout(data: LinkageData, lay: ChainLayout) -> GroupLayout:
+    """The :class:`GroupLayout` of ``data`` (walks the chains as ``chain_layout``)."""
     groups = []  # (link, slot0, slot1, step0, col0, width)
     s = 0
     for i, ld in enumerate(data.links):
