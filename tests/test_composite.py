@@ -6,9 +6,10 @@ steps keep their bases on their own group's columns (``GroupBasis``) and the
 dynamics forms ``M`` from composite inertias (:mod:`sorojax.dynamics._composite`)
 and maps every wrench, the inertial ones included, by the backward sweep, where
 the single-group path forms every point's Jacobian and ``sum w J^T M J``. Both are
-the same sums regrouped, so ``M``, the forces and their forward derivatives must
-agree to rounding (1e-12 relative; 1e-10 for the accelerations' derivatives, which
-divide by M): on a free rod of three divisions with different bases (one a
+the same sums regrouped, so ``M`` and the forces must agree to rounding (1e-12
+relative; their forward derivatives 1e-10, on the chain and the tree; the
+accelerations, which divide by an ill-conditioned M, by their backward error): on a
+free rod of three divisions with different bases (one a
 ``CustomBasis`` mixing strain rows) on a floor, the manual's branched hybrid with
 rigid links and a closed loop, a padded size class, a rod of 6th-order steps, and
 with added mass.
@@ -96,7 +97,7 @@ def case(request):
     rng = np.random.default_rng(3)
     q = jnp.asarray(rng.normal(size=linkage.n_dof) * 3.0)
     qd = jnp.asarray(rng.normal(size=linkage.n_dof))
-    return linkage, data, q, qd
+    return linkage, data, q, qd, request.param
 
 
 def _without_groups(data):
@@ -110,7 +111,7 @@ def _rel(a, b):
 
 def test_group_bases_equal_full_width(case):
     """Strains and transposed products equal the full-width bases' (1e-14)."""
-    _, data, q, _ = case
+    _, data, q, _, _ = case
     st = data.steps
     rng = np.random.default_rng(4)
     Z = jnp.asarray(rng.normal(size=st.xi_ref_z.shape))
@@ -122,7 +123,7 @@ def test_group_bases_equal_full_width(case):
 
 def test_composite_mass_equals_jacobian_product(case):
     """``M`` from composite inertias equals ``sum w J^T M J`` (1e-12), and is SPD."""
-    linkage, data, q, qd = case
+    linkage, data, q, qd, _ = case
 
     @jax.jit
     def both(q, qd):
@@ -144,11 +145,11 @@ def test_composite_mass_equals_jacobian_product(case):
 
 
 def test_forces_and_derivatives_equal_single_group_path(case):
-    """``(M, f)`` and their forward derivatives equal the single-group path's
-    (1e-12 / 1e-10); the accelerations solve the other path's ``M qdd = f`` with a
+    """``(M, f)`` and, on the free rod and the manual's tree, their forward derivatives
+    equal the single-group path's (1e-12 / 1e-10); the accelerations solve the other path's ``M qdd = f`` with a
     normwise backward error below 1e-13 (the solutions themselves differ by up to
     cond(M) x eps: cond(M) is 4e7 on the free rod at these strains)."""
-    linkage, data, q, qd = case
+    linkage, data, q, qd, name = case
     old = _without_groups(data)
     assert chain_layout(old).m == chain_layout(data).m
 
@@ -161,6 +162,8 @@ def test_forces_and_derivatives_equal_single_group_path(case):
     r = jnp.max(jnp.abs(M_o @ qdd - f_o))
     scale = jnp.max(jnp.sum(jnp.abs(M_o), 1)) * jnp.max(jnp.abs(qdd))
     assert float(r / (scale + jnp.max(jnp.abs(f_o)))) < 1e-13
+    if name not in ("free rod", "manual hybrid"):  # derivatives: a chain and a tree
+        return
     dq = jnp.asarray(np.random.default_rng(6).normal(size=q.shape))
 
     def tangent(d):
