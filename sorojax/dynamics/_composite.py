@@ -39,53 +39,34 @@ from ..model._precompute import LinkageData, lock_padding
 class GroupLayout(NamedTuple):
     """Static layout of the coordinate groups (numpy, from shapes only).
 
-    ``link``, ``slot0``, ``slot1`` ``(n_groups,)``: each group's link and its steps'
-    slots ``[slot0, slot1)`` in the link's chain; ``step0`` its first step in
-    :class:`~sorojax.model._precompute.StepData` order; ``col``
-    ``(n_groups, width)``: its columns (-1: padding); ``mass_group`` ``(n_mass,)``
-    the group each mass point is inside (-1: none) and ``mass_step``
-    ``(n_mass,)`` the end of its partial sum (an index into the steps' prefix sums);
-    ``after`` ``(n_groups, n_mass)`` 1 where a mass point lies past the group;
-    ``before`` ``(n_groups, n_groups)`` 1 where a group precedes another in one
-    chain; ``src`` ``(n_dof,)`` each column's entry in the flat ``(n_groups x
-    width)`` blocks (``n_groups x width``: none).
+    The groups are :class:`~sorojax.model._precompute.GroupBasis`'s (its segments of
+    steps, in :class:`~sorojax.model._precompute.StepData` order). ``link``,
+    ``slot0``, ``slot1`` ``(n_groups,)``: each group's link and its steps' slots
+    ``[slot0, slot1)`` in the link's chain; ``step0`` its first step;
+    ``mass_group`` ``(n_mass,)`` the group each mass point is inside (-1: none) and
+    ``mass_step`` ``(n_mass,)`` the end of its partial sum (an index into the
+    steps' prefix sums); ``after`` ``(n_groups, n_mass)`` 1 where a mass point lies
+    past the group; ``before`` ``(n_groups, n_groups)`` 1 where a group precedes
+    another in one chain.
     """
 
     link: np.ndarray
     slot0: np.ndarray
     slot1: np.ndarray
     step0: np.ndarray
-    col: np.ndarray
     mass_group: np.ndarray
     mass_step: np.ndarray
     after: np.ndarray
     before: np.ndarray
-    src: np.ndarray
 
 
 def _group_layout(data: LinkageData, lay: ChainLayout) -> GroupLayout:
-    """The :class:`GroupLayout` of ``data`` (walks the chains as ``chain_layout``)."""
-    groups = []  # (link, slot0, slot1, step0, col0, width)
-    s = 0
-    for i, ld in enumerate(data.links):
-        slot = 1  # after the placement
-        nj = ld.joint_Phi.shape[1]
-        if nj:
-            groups.append((i, slot, slot + 1, s, ld.joint_offset, nj))
-            slot += 1
-            s += 1
-        slot += 1  # g_i
-        for dd in ld.divisions if ld.soft else ():
-            m = dd.h.shape[0]
-            if m and dd.n_dof:
-                groups.append((i, slot, slot + m, s, dd.offset, dd.n_dof))
-            slot += m
-            s += m
-    link, slot0, slot1, step0, col0, width = (
-        np.array(x, int) for x in zip(*groups, strict=True)
+    """The :class:`GroupLayout` of ``data``: its groups placed on the chains."""
+    step0, stop = (
+        np.array(x, int) for x in zip(*data.steps.group.segments, strict=True)
     )
-    K = int(width.max())
-    col = np.where(np.arange(K) < width[:, None], col0[:, None] + np.arange(K), -1)
+    link, slot0 = lay.step_link[step0], lay.step_slot[step0]
+    slot1 = slot0 + stop - step0
     idx = np.asarray(data.mass_points, int)
     rows = lay.row[idx]
     assert (rows >= 0).all(), "a leaf carries mass"
@@ -98,13 +79,9 @@ def _group_layout(data: LinkageData, lay: ChainLayout) -> GroupLayout:
     after = ((pl[:, None] == link) & (ps[:, None] > slot1)).T.astype(float)
     n_g = len(link)
     before = (link[:, None] == link) & (np.arange(n_g)[:, None] < np.arange(n_g))
-    src = np.full(data.n_dof, n_g * K)
-    for gi in range(n_g):
-        src[col0[gi] : col0[gi] + width[gi]] = gi * K + np.arange(width[gi])
     return GroupLayout(
-        link, slot0, slot1, step0, col, mass_group, mass_step, after,
-        before.astype(float), src,
-    )  # fmt: skip
+        link, slot0, slot1, step0, mass_group, mass_step, after, before.astype(float)
+    )
 
 
 def uses_composite(data: LinkageData) -> bool:
@@ -128,10 +105,11 @@ def composite_mass(
     None.
     """
     gl = _group_layout(data, lay)
-    n_g, K = gl.col.shape
+    gb = data.steps.group
+    n_g, K = len(gl.link), gb.values.shape[3]
     dtype = k.R.dtype
     # every step's S_b on its group's columns, in its chain's frame
-    dO = dOmega(data.steps, k, data.steps.group.values)  # (n_steps, 6, K)
+    dO = dOmega(data.steps, k, gb.values)  # (n_steps, 6, K)
     sl, ss = lay.step_link, lay.step_slot
     S = _Ad(ct.RG[sl, ss], ct.pG[sl, ss]) @ (k.T @ dO)
     cum = jnp.concatenate([jnp.zeros_like(S[:1]), jnp.cumsum(S, axis=0)])
@@ -197,5 +175,6 @@ def composite_mass(
     U = jnp.einsum("hgak,gal->hkgl", Jst, P)
     eye = jnp.eye(n_g, dtype=dtype)[:, None, :, None]
     U = (U + eye * (0.5 * B)[:, :, None, :]).reshape(n_g * K, n_g * K)
-    U = jnp.pad(U, ((0, 1), (0, 1)))[gl.src][:, gl.src]
+    src = np.array(gb.src)
+    U = jnp.pad(U, ((0, 1), (0, 1)))[src][:, src]
     return lock_padding(U + U.T, data.locked)

@@ -267,9 +267,12 @@ class GroupBasis(eqx.Module):
         values: ``(n_steps, n_nodes, 6, width)`` the bases (zero past a group's
             width).
         cols: ``(n_steps, width)`` each entry's column (``n_dof``: padding), static.
-        segments: ``((first, stop), ...)`` each group's steps (contiguous), static.
+        segments: ``((first, stop), ...)`` each group's steps (contiguous), static:
+            the groups of the composite mass matrix too
+            (:mod:`sorojax.dynamics._composite`).
         src: ``(n_dof,)`` each column's entry in the flat ``(n_groups x width)``
-            group sums (``n_groups x width``: none), static.
+            group sums and the mass matrix's rows of blocks (``n_groups x width``:
+            none), static.
     """
 
     values: Float[Array, "n_steps n_nodes 6 width"]
