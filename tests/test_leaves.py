@@ -11,7 +11,10 @@ their closed forms. The strains at the steps' nodes and the force of their
 covectors read the bases by their nonzero entries (``LeafBasis``): the same products
 as the full-width bases, also on a rod of two divisions whose second basis mixes
 strain rows. Contact wrenches at distinct sample points are summed by a gather
-instead of a scatter: the same sums.
+instead of a scatter: the same sums. The obstacles' contact on the leaves is formed
+on their rows too (world positions and velocities in, wrenches at the chain points
+out): the dynamics' forces and their derivatives agree with the stacked path's
+(contact wrenches at every point, mapped by the stacked kernels) to rounding.
 """
 
 import jax
@@ -22,6 +25,7 @@ from test_contact_kernels import _rod  # the same rod and floor
 
 import sorojax as sj
 from sorojax.dynamics._contact import _add_rows
+from sorojax.dynamics._eom import mass_and_force
 from sorojax.dynamics._wrench_recursion import force_from_point_rates
 from sorojax.kinematics import _leaves
 from sorojax.kinematics._recursion import point_jacobians, point_rates
@@ -196,4 +200,57 @@ def test_two_divisions_agree_with_the_stacked_kernels(two_divisions):
         return pr.g, pr.eta, J, force_from_point_rates(data, pr, W)
 
     new, old = _both(lambda q: jax.jvp(f, (q,), (dq,)), q)
+    _close(new, old, 1e-11)
+
+
+def _obstacles_rod(self_contact: bool):
+    """40 samples against a moving tilted plane (forward friction) and a sphere.
+
+    The sphere has its own law; with ``self_contact`` the rod's segment pairs load
+    the leaves as well (their wrenches then reach the leaves' rows both ways).
+    """
+    law = sj.ContactLaw(stiffness=1e4, smoothing=1e-4, damping=10.0,
+                        static_friction=0.5, forward_friction=0.2)  # fmt: skip
+    other = sj.ContactLaw(stiffness=3e3, smoothing=2e-4, damping=5.0,
+                          static_friction=0.3)  # fmt: skip
+
+    def lift(t):
+        return jnp.eye(4).at[2, 3].set(0.002 * jnp.sin(3.0 * t)).at[0, 3].set(0.01 * t)
+
+    plane = sj.Plane(normal=(0.005, 0.002, 1.0), motion=lift)
+    ball = sj.Sphere(0.02, centre=(0.2, 0.0, 0.03))
+    rod = sj.SoftLink(
+        [sj.Division(0.3, sj.CircularSection(0.01),
+                     sj.LegendreBasis((0, 1, 1, 0, 0, 0), 2))],
+        sj.Material(E=1e6, rho=1000.0, eta=1e3),
+        joint=sj.Joint("A", axis=(0, 1, 0)),
+    )  # fmt: skip
+    contact = sj.Contact((plane, ball), law, spacing=0.3 / 39,
+                         obstacle_laws={1: other},
+                         self_contact=(1,) if self_contact else ())  # fmt: skip
+    place = np.eye(4)
+    place[2, 3] = 0.008  # pressed into the plane
+    return sj.Linkage(
+        [rod], placements=place[None], gravity=(0, 0, -9.81), contact=contact
+    )
+
+
+@pytest.mark.parametrize("self_contact", [False, True])
+def test_obstacles_on_the_leaves_rows_agree_with_the_stacked_path(self_contact):
+    """``(M, f)`` and their forward derivatives, both obstacles touching."""
+    lk = _obstacles_rod(self_contact)
+    data = precompute(lk)
+    assert _leaves.applies(data)
+    rng = np.random.default_rng(11)
+    q = jnp.asarray(np.r_[0.0, 0.0, 0.0, rng.normal(size=lk.n_dof - 3) * 0.03])
+    qd, dq, dqd = (jnp.asarray(rng.normal(size=lk.n_dof) * 0.2) for _ in range(3))
+    t = jnp.asarray(0.3)
+    st = sj.contact_state(lk, q, qd, t)
+    for k in (0, 1):  # the plane and the sphere both push
+        assert int(jnp.sum((st.obstacle == k) & (st.normal_force > 0))) >= 3
+
+    def f(q, qd):
+        return mass_and_force(lk, data, t, q, qd)
+
+    new, old = _both(lambda q, qd: jax.jvp(f, (q, qd), (dq, dqd)), q, qd)
     _close(new, old, 1e-11)

@@ -27,6 +27,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float
 from .._jit import jit
 from .._results import RESULTS
 from ..kinematics._api import _as_q
+from ..kinematics._leaves import _cross, _mat_vec
 from ..model._contact import (
     Contact,
     _safe_norm,
@@ -217,31 +218,40 @@ def _rotate_back(R, v):
     )
 
 
-def _law_forces(law, d, n, v_rel, weight, friction: bool, axis=None):
+def _law_forces(law, d, n, v_rel, weight, friction: bool, axis=None, comp=-1):
     """Force on the robot (world) from penetration, normal and relative velocity.
 
     ``axis``: (n, 3) body axes of anisotropic friction (``law.forward_friction``).
+    ``comp``: the vectors' component axis: -1 for ``(n, 3)`` stacks, 0 for ``(3,
+    n)`` rows (:func:`_obstacle_rows`).
     """
-    vn = jnp.sum(v_rel * n, axis=-1)
-    vt = v_rel - vn[:, None] * n
+
+    def dot(a, b):
+        return jnp.sum(a * b, axis=comp)
+
+    def times(c, v):  # scalars (n,) times vectors
+        return jnp.expand_dims(c, comp) * v
+
+    vn = dot(v_rel, n)
+    vt = v_rel - times(vn, n)
     f_el = law.normal_force(d)
     fn = f_el - law.damping * law.ramp(d) * vn
-    f = fn[:, None] * n
+    f = times(fn, n)
     if friction:
-        speed2 = jnp.sum(vt * vt, axis=-1)
+        speed2 = dot(vt, vt)
         speed = jnp.sqrt(speed2 + law.stick_velocity**2)
         mu = law.friction_coefficient(jnp.sqrt(speed2 + 1e-30))
-        resist = (mu * f_el / speed)[:, None] * vt
+        resist = times(mu * f_el / speed, vt)
         if law.forward_friction is not None and axis is not None:
             # the slip along the body axis (in the tangent plane) meets mu_f forward
-            e = axis - jnp.sum(axis * n, axis=-1)[:, None] * n
-            e = e / jnp.maximum(_safe_norm(e), 1e-12)[:, None]
-            v_ax = jnp.sum(vt * e, axis=-1)
+            e = axis - times(dot(axis, n), n)
+            e = e / jnp.expand_dims(jnp.maximum(_safe_norm(e, axis=comp), 1e-12), comp)
+            v_ax = dot(vt, e)
             w = 0.5 * (1.0 + jnp.tanh(v_ax / law.stick_velocity))
             mu_ax = w * law.forward_friction + (1.0 - w) * mu
-            resist = resist + ((mu_ax - mu) * f_el * v_ax / speed)[:, None] * e
+            resist = resist + times((mu_ax - mu) * f_el * v_ax / speed, e)
         f = f - resist
-    return weight[:, None] * f, weight * fn, vt
+    return times(weight, f), weight * fn, vt
 
 
 def _point_wrenches(R, p, x_c, f):
@@ -297,6 +307,48 @@ def _obstacle_terms(contact: Contact, samples: Samples, g, eta, t, friction: boo
         energy = jnp.sum(samples.weight * law.potential(d))
         rows.append((x_c, n, d, fn, f, vt, energy))
     return loads, rows
+
+
+def _obstacle_rows(contact: Contact, samples: Samples, frames, t, friction: bool):
+    """The obstacles' wrenches ``(6, n)`` on samples, component by component.
+
+    ``frames``: the samples' world positions and velocities with the frames their
+    wrenches are given in (:class:`~sorojax.kinematics._leaves.LeafFrames`). The
+    contact of :func:`_obstacle_terms` and :func:`_point_wrenches` with every
+    quantity a row over the samples (each kernel a loop over them,
+    :mod:`sorojax.kinematics._leaves`): the obstacles' forces ``f`` at the
+    contact points ``x_c`` are summed in the world frame as the wrench ``((x_c -
+    o) x f, f)`` about the frame's origin ``o``, then turned into the frame.
+    """
+    R, o, x, w, v = frames.R, frames.o, frames.x, frames.w, frames.v
+    r = samples.radius[None]
+    m_w = f_w = jnp.zeros_like(x)
+    for k, ob in enumerate(contact.obstacles):
+        G, Gd = ob.frame(t)
+        RG, pG = G[:3, :3], G[:3, 3:]
+        xl = jnp.stack(_mat_vec(RG, x - pG, transpose=True))
+        phi, grad = jax.vmap(
+            jax.value_and_grad(ob.distance), in_axes=1, out_axes=(0, 1)
+        )(xl)
+        n = jnp.stack(_mat_vec(RG, grad))
+        n = n / jnp.maximum(_safe_norm(n, axis=0), 1e-12)[None]
+        x_c = x - r * n
+        xo = jnp.stack(_mat_vec(RG, x_c - pG, transpose=True))
+        v_obs = jnp.stack(_mat_vec(Gd[:3, :3], xo)) + Gd[:3, 3:]
+        v_rel = v + jnp.stack(_cross(w, x_c - x)) - v_obs
+        f, _, _ = _law_forces(
+            contact.obstacle_law(k),
+            r[0] - phi,
+            n,
+            v_rel,
+            samples.weight,
+            friction,
+            axis=frames.axis,
+            comp=0,
+        )
+        m_w = m_w + jnp.stack(_cross(x_c - o, f))
+        f_w = f_w + f
+    return jnp.stack(_mat_vec(R, m_w, True) + _mat_vec(R, f_w, True))
 
 
 def segment_closest(p0, p1, q0, q1):
@@ -686,6 +738,70 @@ def contact_wrenches(linkage: Linkage, t, g, eta=None) -> Array:
     return _contact(linkage, t, g, eta)[0]
 
 
+def contact_loads(linkage: Linkage, t, g, eta, rates=None, lay=None):
+    """``(W, leaf_rows)``: the body wrenches of every contact, with friction.
+
+    ``rates``: the dynamics' :class:`~sorojax.kinematics._recursion.PointRates`,
+    ``lay`` the chain layout. Where the rates hold the leaves' frames component by
+    component (:class:`~sorojax.kinematics._leaves.LeafFrames`), the obstacles'
+    contact of the samples on leaves is formed on such rows
+    (:func:`_obstacle_rows`) and returned as ``leaf_rows`` ``(6, n_leaves)``, each
+    leaf's wrench at its chain point (for :func:`~sorojax.dynamics.
+    _wrench_recursion.leaf_wrenches`); ``W`` ``(n_points, 6)`` holds every other
+    contact. Otherwise this is :func:`contact_wrenches` and ``leaf_rows`` is None.
+    """
+    contact = linkage.contact
+    assert contact is not None
+    frames = None if rates is None else rates.leaf_frames
+    if frames is None or not contact.obstacles:
+        return contact_wrenches(linkage, t, g, eta), None
+    samples = obstacle_samples(linkage)
+    leaf = lay.order[samples.point] - len(lay.core)  # leaf index (< 0: a chain point)
+    on_leaf = np.flatnonzero(leaf >= 0)
+    li = leaf[on_leaf]
+    n_leaves = frames.x.shape[1]
+    whole = np.array_equal(li, np.arange(n_leaves))
+    if not whole:
+        frames = jax.tree.map(lambda a: a[..., li], frames)
+    rows = _obstacle_rows(contact, _subset(samples, on_leaf), frames, t, True)
+    if not whole:
+        rows = jnp.zeros((6, n_leaves), rows.dtype).at[:, li].add(rows)
+    if contact_pairs(linkage):
+        W = _contact(linkage, t, g, eta, _subset(samples, np.zeros(0, int)))[0]
+    else:
+        W = jnp.zeros((g.shape[0], 6), g.dtype)
+    at_core = np.flatnonzero(leaf < 0)
+    if len(at_core):  # the samples on chain points, from the chain's own rows
+        gc, ec = rates.core
+        pts = samples.point[at_core]
+        sub = _subset(samples, at_core)._replace(point=lay.row[pts])
+        loads, _ = _obstacle_terms(contact, sub, gc, ec, t, True)
+        R, p = gc[sub.point, :3, :3], gc[sub.point, :3, 3]
+        Wk = sum(_point_wrenches(R, p, x, f) for _, x, f in loads)
+        W = _add_rows(W, pts, Wk)
+    return W, rows
+
+
+def contact_pairs(linkage: Linkage) -> bool:
+    """Whether the scene has contacts between links (static).
+
+    Rod pairs, self-contact, bodies against rods or in tubes: the contacts whose
+    wrenches :func:`contact_loads` puts in ``W`` at any point, leaves included.
+    """
+    return bool(_pair_list(linkage) or sphere_rod_pairs(linkage))
+
+
+def _subset(samples: Samples, idx: np.ndarray) -> Samples:
+    """The samples ``idx`` (static indices), in that order."""
+    return Samples(
+        samples.point[idx],
+        samples.link[idx],
+        samples.weight[idx],
+        samples.radius[idx],
+        samples.offset[idx],
+    )
+
+
 def contact_wrenches_and_penetrations(linkage: Linkage, t, g) -> tuple[Array, Array]:
     """Frictionless contact wrenches and every contact's penetration (statics)."""
     W, rows, _, _ = _contact(linkage, t, g, None)
@@ -713,8 +829,10 @@ def smallest_radius(linkage: Linkage) -> Array:
     return jnp.min(jnp.where(r > 0, r, jnp.inf))
 
 
-def _contact(linkage: Linkage, t, g, eta):
+def _contact(linkage: Linkage, t, g, eta, samples: Samples | None = None):
     """``(W, rows, labels, overflow)``: wrenches, report rows and their labels.
+
+    ``samples``: the obstacles' samples (None: :func:`obstacle_samples`).
 
     Each kind of contact gives its loads, ``(points, x, f)``: forces ``f`` (world)
     at world points ``x`` carried by significant points ``points``; they become
@@ -727,8 +845,9 @@ def _contact(linkage: Linkage, t, g, eta):
     friction = eta is not None
     loads, rows, labels = [], [], []
     overflow = jnp.zeros((), bool)
-    if contact.obstacles:
+    if samples is None and contact.obstacles:
         samples = obstacle_samples(linkage)
+    if contact.obstacles and len(samples.point):
         lo, ro = _obstacle_terms(contact, samples, g, eta, t, friction)
         loads += lo
         for k, r in enumerate(ro):

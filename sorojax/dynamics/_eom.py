@@ -32,6 +32,7 @@ from ..kinematics._recursion import (
     jacobians_dot,
     point_jacobians,
     point_rates,
+    point_rows,
     rest_rates,
     rows_of,
     strains,
@@ -44,7 +45,7 @@ from ._composite import composite_mass, uses_composite
 from ._constraints import (
     constraint_terms_from_kinematics,
 )
-from ._contact import contact_wrenches
+from ._contact import contact_loads, contact_pairs
 from ._external import custom_wrenches, gravity_wrenches, point_wrenches
 from ._mass import _gyroscopic, _mass_from_J
 from ._wrench_recursion import force_from_point_rates, force_from_wrenches
@@ -205,16 +206,25 @@ def mass_and_force(
     idx = np.asarray(data.mass_points, dtype=int)
     rows = row[idx]  # the mass points' rows in J
     Mw = data.point_weight[idx, None, None] * data.point_M[idx]
-    W_m = gravity_wrenches(data, g[idx], idx) - _gyroscopic(
-        Mw, eta[idx], rates.etadot[rows]
-    )
+    g_m, eta_m = point_rows(data, rates, idx)
+    W_m = gravity_wrenches(data, g_m, idx) - _gyroscopic(Mw, eta_m, rates.etadot[rows])
     M = mass_matrix(linkage, data, rates)
     Ma = _added_mass(linkage, data, idx)
     if Ma is not None:
         W_m = W_m - jnp.einsum("pab,pb->pa", Ma, rates.etadot[rows])
     W = point_wrenches(linkage, t, g)  # gravity: with the inertial forces
+    leaf_rows = None
     if linkage.contact is not None:
-        W = W + contact_wrenches(linkage, t, g, eta)
+        lay = chain_layout(data)
+        Wc, leaf_rows = contact_loads(linkage, t, g, eta, rates, lay)
+        W = W + Wc
+    # whether W may hold wrenches on the leaves (static): else their rows are not read
+    on_leaves = leaf_rows is None or bool(
+        linkage.point_wrenches
+        or linkage.custom_wrench is not None
+        or u is not None
+        or contact_pairs(linkage)
+    )
     if linkage.custom_wrench is not None:
         read = functools.partial(linkage.custom_wrench, t, q, qd)
         W = W + custom_wrenches(linkage, data, t, q, qd, kin_fn(read))
@@ -227,10 +237,12 @@ def mass_and_force(
         at = np.full(W.shape[0], len(idx))
         at[idx] = np.arange(len(idx))
         W = W + jnp.concatenate([W_m, jnp.zeros_like(W_m[:1])])[at]
-        f = force_from_wrenches(data, (*rates.records, lay, rates.leaves), W)
+        records = (*rates.records, lay, rates.leaves)
+        f = force_from_wrenches(data, records, W, leaf_rows, on_leaves)
     else:
         J_m = rates.J[rows]
-        f = force_from_point_rates(data, rates, W) + jnp.einsum("pai,pa->i", J_m, W_m)
+        f = force_from_point_rates(data, rates, W, leaf_rows, on_leaves)
+        f = f + jnp.einsum("pai,pa->i", J_m, W_m)
     f = f - data.K @ q - data.D @ qd
     if u is not None:
         f = f + Qa

@@ -54,19 +54,24 @@ def poses_with_records(data: LinkageData, q):
     return with_leaves(lay, g, leaf_poses(lay, g, kl)), (k, ct, lay, kl)
 
 
-def leaf_wrenches(data: LinkageData, lay, kl, W):
+def leaf_wrenches(data: LinkageData, lay, kl, W, rows=None, on_leaves: bool = True):
     """Leaves' wrenches carried to their chain points, and their own steps' force.
 
     With ``J_leaf = Ad(E)^-1 (J_a + T dOmega)`` (E the leaf's step from chain point
     a), ``J_leaf^T W = J_a^T y + dOmega^T T^T y``, ``y = Ad(E)^-T W``. Returns the
     chain points' wrenches ``(n_core, 6)`` (their own plus their leaves' ``y``) and
-    the generalised force of the leaves' steps ``(n_dof,)``.
+    the generalised force of the leaves' steps ``(n_dof,)``. ``rows``: more
+    wrenches, already at the leaves' chain points (``y``), component by component
+    ``(6, n_leaves)`` (only with the leaves' own kernels,
+    :mod:`sorojax.kinematics._leaves`), or None; ``on_leaves``: False where ``W``
+    holds nothing on the leaves (static: their rows are then not read).
     """
     Wc = W[lay.core]
     if kl is None:
         return Wc, jnp.zeros(data.n_dof, W.dtype)
     if isinstance(kl, _leaves.LeafRecord):  # many leaves: component by component
-        y, F = _leaves.leaf_wrenches(data, kl, W[np.asarray(data.leaf_points)])
+        W_l = W[np.asarray(data.leaf_points)] if on_leaves or rows is None else None
+        y, F = _leaves.leaf_wrenches(data, kl, W_l, rows)
         return Wc + leaf_sums(lay, y), F
     y = from_step_end(kl.R, kl.p, W[np.asarray(data.leaf_points)])
     z = tangent_transpose_apply(kl.T, y)
@@ -75,7 +80,11 @@ def leaf_wrenches(data: LinkageData, lay, kl, W):
 
 
 def force_from_wrenches(
-    data: LinkageData, records, W: Float[Array, "n_points 6"]
+    data: LinkageData,
+    records,
+    W: Float[Array, "n_points 6"],
+    leaf_rows=None,
+    on_leaves: bool = True,
 ) -> Float[Array, " n_dof"]:
     """``sum_p J_p^T W_p`` for body wrenches ``W`` at the significant points.
 
@@ -84,9 +93,12 @@ def force_from_wrenches(
         records: from :func:`poses_with_records` at the same ``q``.
         W: body-frame wrenches (moment, force) at every significant point, already
             multiplied by their quadrature weights where distributed.
+        leaf_rows: more wrenches on the leaves, at their chain points, ``(6,
+            n_leaves)`` (see :func:`leaf_wrenches`), or None.
+        on_leaves: whether ``W`` holds any wrench on the leaves (static).
     """
     k, ct, lay, kl = records
-    W, F_leaves = leaf_wrenches(data, lay, kl, W)
+    W, F_leaves = leaf_wrenches(data, lay, kl, W, leaf_rows, on_leaves)
     n_links = len(data.links)
     rows = np.arange(n_links)
     pl, ps = lay.point_link, lay.point_slot
@@ -125,13 +137,21 @@ def force_from_wrenches(
     return step_jacobians_transpose(data, k, z) + F_leaves
 
 
-def force_from_point_rates(data: LinkageData, pr, W: Float[Array, "n_points 6"]):
+def force_from_point_rates(
+    data: LinkageData,
+    pr,
+    W: Float[Array, "n_points 6"],
+    leaf_rows=None,
+    on_leaves: bool = True,
+):
     """``sum_p J_p^T W_p`` with :class:`~sorojax.kinematics._recursion.PointRates`.
 
     The chain points' Jacobians map their wrenches and their leaves' (carried
-    across the leaves' steps by :func:`leaf_wrenches`).
+    across the leaves' steps by :func:`leaf_wrenches`); ``leaf_rows`` and
+    ``on_leaves`` as there.
     """
     if pr.leaves is None:  # every point's Jacobian
         return jnp.einsum("pai,pa->i", pr.J, W)
-    Wc, F = leaf_wrenches(data, chain_layout(data), pr.leaves, W)
+    lay = chain_layout(data)
+    Wc, F = leaf_wrenches(data, lay, pr.leaves, W, leaf_rows, on_leaves)
     return jnp.einsum("pai,pa->i", pr.J, Wc) + F

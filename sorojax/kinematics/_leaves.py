@@ -15,9 +15,15 @@ stacks whose minor axes are three or six numbers long.
 XLA's CPU fusion copies an elementwise producer into every kernel that reads it,
 unless the producer is an expensive operation (a division, a square root): terms that
 many rows share (the exp's coefficients, the step's twist, the rotated wrench) would
-be recomputed in every kernel that reads them. :func:`_kept` stacks such terms and
-divides them by ones computed at run time, so that XLA computes them in one kernel
-and stores them (the quotient is exact: ``x / 1 = x``).
+be recomputed in every kernel that reads them. :func:`_kept` stacks such terms behind
+an optimisation barrier, so that XLA computes them in one kernel and stores them
+(a division by ones computed at run time would do the same at the cost of a
+division per value).
+
+In the dynamics the leaves' contact with the obstacles reads their world positions
+and velocities (:class:`LeafFrames`: from the chain point's frame, without the
+leaves' rotations) and gives its wrenches back at the chain points, so that neither
+the leaves' ``(n, 4, 4)`` poses nor their body twists are formed there.
 
 The strains at the steps' nodes and the generalised force of the steps' covectors
 read the bases by their nonzero entries (:class:`~sorojax.model._precompute.
@@ -38,6 +44,25 @@ from jaxtyping import Array
 
 from ..model._precompute import MIN_LEAVES
 from ._step import _SERIES, _SMALL, closed_forms
+
+
+class LeafFrames(NamedTuple):
+    """The leaves' world positions and velocities, component by component.
+
+    ``R`` ``(3, 3, n)`` and ``o`` ``(3, n)``: the world frame of each leaf's chain
+    point; ``x`` ``(3, n)``: the leaf's world position; ``w``, ``v`` ``(3, n)``: its
+    world angular velocity and the world velocity of its origin; ``axis`` ``(3,
+    n)``: its first body axis in the world. What the obstacles' contact reads
+    (:func:`~sorojax.dynamics._contact.contact_loads`); a wrench there comes back
+    in the chain point's frame, as :func:`leaf_wrenches` takes it.
+    """
+
+    R: Array
+    o: Array
+    x: Array
+    w: Array
+    v: Array
+    axis: Array
 
 
 class LeafRecord(NamedTuple):
@@ -65,19 +90,13 @@ def applies(data) -> bool:
     )
 
 
-def _run_time_one(xi):
-    """Ones ``(n,)`` XLA cannot fold: from the strains, no derivative (``_kept``)."""
-    return jax.lax.stop_gradient(xi[0, 0] * 0.0 + 1.0)
-
-
-def _kept(x, one):
+def _kept(x):
     """``x`` (an array or nested lists of ``(n,)`` rows) stacked and stored.
 
-    Dividing by ``one`` (ones computed at run time) makes XLA compute the stack in
-    one kernel and keep it (see the module docstring); ``x / 1 = x`` exactly.
+    An optimisation barrier makes XLA compute the stack in one kernel and keep it
+    (see the module docstring); the values are those of the stack.
     """
-    x = _stacked(x)
-    return x / one.reshape((1,) * (x.ndim - 1) + one.shape)
+    return jax.lax.optimization_barrier(_stacked(x))
 
 
 def _stacked(x):
@@ -105,7 +124,7 @@ def _add(a, b):
     return [x + y for x, y in zip(a, b, strict=True)]
 
 
-def _exp_and_tangent(Omega, one):
+def _exp_and_tangent(Omega):
     """``R, p, Ts, Q`` of :func:`~sorojax.kinematics._step.exp_and_tangent`.
 
     ``Omega``: the twists ``(6, n)``; returns ``(3, 3, n)``, ``(3, n)``, ``(3, 3, n)``,
@@ -117,7 +136,7 @@ def _exp_and_tangent(Omega, one):
     small = th2 < _SMALL
     t2 = jnp.where(small, 1.0, th2)
     t = jnp.sqrt(t2)
-    sc = _kept([jnp.sin(t), jnp.cos(t)], one)
+    sc = _kept([jnp.sin(t), jnp.cos(t)])
     closed = closed_forms(t, t2, sc[0], sc[1])
     coef = []
     for col, closed_form in zip(_SERIES.T, closed, strict=True):
@@ -126,7 +145,7 @@ def _exp_and_tangent(Omega, one):
             series = series * th2 + ck
         coef.append(jnp.where(small, series, closed_form))
     wv = w[0] * v[0] + w[1] * v[1] + w[2] * v[2]
-    k = _kept(coef + [th2, wv] + _cross(w, v), one)
+    k = _kept(coef + [th2, wv] + _cross(w, v))
     A, B, C, D, F, th2, wv = (k[i] for i in range(7))
     wxv = k[7:]
     zero = jnp.zeros_like(th2)
@@ -151,7 +170,7 @@ def _exp_and_tangent(Omega, one):
         ]
         for i in range(3)
     ]
-    return _kept(R, one), _kept(p, one), _kept(Ts, one), _kept(Q, one)
+    return _kept(R), _kept(p), _kept(Ts), _kept(Q)
 
 
 def _ad(a, b):
@@ -167,7 +186,7 @@ def _ad_transpose(a, z):
 
 
 def leaf_rates(data, lay, q, qd, g_core, eta_core):
-    """The leaves' world poses ``(n, 4, 4)``, body twists ``(n, 6)`` and record.
+    """The leaves' world poses ``(n, 4, 4)``, body twists ``(n, 6)``, record, frames.
 
     ``g_core``, ``eta_core``: poses and twists of the chain's points (rows of
     ``lay.core``). The twist of a leaf is ``Ad(E)^-1 (eta_c + T(Omega) dOmega qd)``
@@ -175,47 +194,60 @@ def leaf_rates(data, lay, q, qd, g_core, eta_core):
     """
     st = data.leaf_steps
     xi, xd = st.compact.strains(q, st.xi_ref_t), st.compact.strains(qd)
-    one = _run_time_one(xi)
-    xi = _kept(xi, one)
+    xi = _kept(xi)
     h, c = st.h[None], st.c[None]  # rows against (6, n) stacks
     x1, x2, d1, d2 = xi[0], xi[1], xd[0], xd[1]
     Omega = 0.5 * h * (x1 + x2) + c * _stacked(_ad(x1, x2))
     Od = 0.5 * h * (d1 + d2) + c * (_stacked(_ad(x1, d2)) - _stacked(_ad(x2, d1)))
-    Omega, Od = _kept(Omega, one), _kept(Od, one)
-    R, p, Ts, Q = _exp_and_tangent(Omega, one)
+    Omega, Od = _kept(Omega), _kept(Od)
+    R, p, Ts, Q = _exp_and_tangent(Omega)
     # x = eta_c + T Od, then the twist at the step's end: (R^T x_w, R^T (x_v + x_w x p))
-    gT = jnp.transpose(g_core, (1, 2, 0))[..., lay.leaf_row]
+    gT = jnp.transpose(g_core[:, :3], (1, 2, 0))[..., lay.leaf_row]
     eT = eta_core.T[:, lay.leaf_row]
     Tw = _mat_vec(Ts, Od[:3])
     Tv = _add(_mat_vec(Q, Od[:3]), _mat_vec(Ts, Od[3:]))
-    x = _kept(_add(list(eT[:3]), Tw) + _add(list(eT[3:]), Tv), one)
+    x = _kept(_add(list(eT[:3]), Tw) + _add(list(eT[3:]), Tv))
     xv = _add(list(x[3:]), _cross(x[:3], p))
     eta = jnp.stack(_mat_vec(R, x[:3], True) + _mat_vec(R, xv, True), axis=1)
-    # world pose: (R_c R, R_c p + p_c)
-    Rc = gT[:3, :3]
+    # world pose: (R_c R, R_c p + p_c); world velocities: R_c x_w, R_c xv
+    Rc, pc = gT[:, :3], gT[:, 3]
     cols = [_mat_vec(Rc, R[:, j]) for j in range(3)]
-    pw = _add(_mat_vec(Rc, p), list(gT[:3, 3]))
-    zero, unit = jnp.zeros_like(one), jnp.ones_like(one)
+    pw = _add(_mat_vec(Rc, p), list(pc))
+    frames = LeafFrames(
+        Rc,
+        pc,
+        _stacked(pw),
+        _stacked(_mat_vec(Rc, x[:3])),
+        _stacked(_mat_vec(Rc, xv)),
+        _stacked(cols[0]),
+    )
+    zero, unit = jnp.zeros_like(p[0]), jnp.ones_like(p[0])
     g = [[cols[0][i], cols[1][i], cols[2][i], pw[i]] for i in range(3)]
     g = jnp.transpose(_stacked(g + [[zero, zero, zero, unit]]), (2, 0, 1))
-    return g, eta, LeafRecord(R, p, Ts, Q, xi)
+    return g, eta, LeafRecord(R, p, Ts, Q, xi), frames
 
 
-def leaf_wrenches(data, rec: LeafRecord, W):
+def leaf_wrenches(data, rec: LeafRecord, W, rows=None):
     """The leaves' wrenches at their chain points and their steps' force.
 
-    ``W``: the leaves' body wrenches ``(n, 6)``. Returns ``y = Ad(E)^-T W`` (each
+    ``W``: the leaves' body wrenches ``(n, 6)``, or None; ``rows``: wrenches
+    already at the chain points (in their frames), component by component ``(6,
+    n)`` (the obstacles' contact, :func:`~sorojax.dynamics._contact.
+    contact_loads`), or None. Returns ``y = Ad(E)^-T W`` plus ``rows`` (each
     wrench at its step's start, ``(n, 6)``) and the generalised force of the
     leaves' own steps ``sum dOmega^T T^T y`` ``(n_dof,)``, as
     :func:`~sorojax.dynamics._wrench_recursion.leaf_wrenches` forms them.
     """
     st = data.leaf_steps
-    one = _run_time_one(rec.xi)
-    Wt = W.T
-    Rf = _mat_vec(rec.R, Wt[3:])
-    y = _kept(_add(_mat_vec(rec.R, Wt[:3]), _cross(rec.p, Rf)) + Rf, one)
+    if W is None:
+        y = _kept(rows)
+    else:
+        Wt = W.T
+        Rf = _mat_vec(rec.R, Wt[3:])
+        y = _add(_mat_vec(rec.R, Wt[:3]), _cross(rec.p, Rf)) + Rf
+        y = _kept(y if rows is None else _add(y, list(rows)))
     z = _add(_mat_vec(rec.Ts, y[:3], True), _mat_vec(rec.Q, y[3:], True))
-    z = _kept(z + _mat_vec(rec.Ts, y[3:], True), one)
+    z = _kept(z + _mat_vec(rec.Ts, y[3:], True))
     x1, x2 = rec.xi[0], rec.xi[1]
     h, c = st.h[None], st.c[None]
     Z1 = 0.5 * h * z - c * _stacked(_ad_transpose(x2, z))
@@ -232,17 +264,16 @@ def leaf_jacobians(data, rec: LeafRecord, J_chain):
     ``dOmega`` as in :func:`leaf_rates`.
     """
     st = data.leaf_steps
-    one = _run_time_one(rec.xi)
     P1, P2 = st.compact.columns(data.n_dof)  # (6, n_dof, n) at each node
     x1, x2 = rec.xi[0][:, None], rec.xi[1][:, None]  # (6, 1, n) against (n_dof, n)
     h, c = st.h[None, None], st.c[None, None]
     dO = 0.5 * h * (P1 + P2) + c * (_stacked(_ad(x1, P2)) - _stacked(_ad(x2, P1)))
-    dO = _kept(dO, one)
+    dO = _kept(dO)
     Ts, Q, R, p = (m[..., None, :] for m in (rec.Ts, rec.Q, rec.R, rec.p))
     Jc = jnp.transpose(J_chain, (1, 2, 0))
     Tw = _mat_vec(Ts, dO[:3])
     Tv = _add(_mat_vec(Q, dO[:3]), _mat_vec(Ts, dO[3:]))
-    x = _kept(_add(list(Jc[:3]), Tw) + _add(list(Jc[3:]), Tv), one)
+    x = _kept(_add(list(Jc[:3]), Tw) + _add(list(Jc[3:]), Tv))
     xv = _add(list(x[3:]), _cross(x[:3], p))
     J = jnp.stack(_mat_vec(R, x[:3], True) + _mat_vec(R, xv, True))
     return jnp.transpose(J, (2, 0, 1))

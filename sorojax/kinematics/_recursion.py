@@ -645,7 +645,11 @@ class PointRates(NamedTuple):
     None when ``J`` and ``etadot`` have a row per point (no leaves;
     :func:`point_jacobians` gives every point's ``J``); ``records``: the chain's
     :class:`Steps` and :class:`ChainTerms` ``(k, ct)`` (for the mass matrix from
-    composite inertias and the backward wrench sweep).
+    composite inertias and the backward wrench sweep); ``leaf_frames``: the leaves'
+    world frames and twists component by component (a
+    :class:`~sorojax.kinematics._leaves.LeafFrames`, where the leaves' kernels apply);
+    ``core``: ``(g, eta)`` at the chain's points only (with leaves; see
+    :func:`point_rows`).
     """
 
     g: Array
@@ -654,6 +658,23 @@ class PointRates(NamedTuple):
     etadot: Array
     leaves: Steps | None
     records: tuple | None = None
+    leaf_frames: tuple | None = None
+    core: tuple | None = None
+
+
+def point_rows(data: LinkageData, pr: PointRates, idx: np.ndarray) -> tuple:
+    """``(g[idx], eta[idx])`` for static point indices ``idx``.
+
+    Read from the chain's own rows (``pr.core``) where every point of ``idx`` is
+    one: then the poses and twists of every point, leaves included, need not be
+    formed for them.
+    """
+    idx = np.asarray(idx, dtype=int)
+    if pr.core is not None:
+        row = chain_layout(data).row[idx]
+        if np.all(row >= 0):
+            return pr.core[0][row], pr.core[1][row]
+    return pr.g[idx], pr.eta[idx]
 
 
 def rows_of(data: LinkageData, pr: PointRates) -> np.ndarray:
@@ -690,7 +711,7 @@ def point_rates(data: LinkageData, q, qd) -> PointRates:
     """
     g, J, (eta, etadot), (k, ct, lay) = _tree_pass(data, q, None, qd, core_only=True)
     if _leaves.applies(data):  # many leaves: component by component
-        g_l, eta_l, rec = _leaves.leaf_rates(data, lay, q, qd, g, eta)
+        g_l, eta_l, rec, frames = _leaves.leaf_rates(data, lay, q, qd, g, eta)
         return PointRates(
             with_leaves(lay, g, g_l),
             with_leaves(lay, eta, eta_l),
@@ -698,6 +719,8 @@ def point_rates(data: LinkageData, q, qd) -> PointRates:
             etadot,
             rec,
             (k, ct),
+            frames,
+            (g, eta),
         )
     kl = leaf_steps(data, q, many=False)  # in dynamics: derivatives of one tangent
     if kl is None:
@@ -705,7 +728,8 @@ def point_rates(data: LinkageData, q, qd) -> PointRates:
     Od = step_rates(data.leaf_steps, kl, qd)
     eta_l = to_step_end(kl.R, kl.p, eta[lay.leaf_row] + _tangent_apply(kl.T, Od))
     g_all = with_leaves(lay, g, leaf_poses(lay, g, kl))
-    return PointRates(g_all, with_leaves(lay, eta, eta_l), J, etadot, kl, (k, ct))
+    eta_all = with_leaves(lay, eta, eta_l)
+    return PointRates(g_all, eta_all, J, etadot, kl, (k, ct), None, (g, eta))
 
 
 def rest_rates(data: LinkageData, q) -> PointRates:
