@@ -27,11 +27,13 @@ Scenes:
   contact, slightly bent; its mass matrix from composite inertias (the default for
   many coordinates in several groups) and again from the Jacobians (``Jacobians``).
 
-Parts (each a function of the previous part's outputs): ``kinematics`` (poses and
-twists of every point, Jacobians and twist rates at the chain's points, the leaves'
-steps), ``mass`` (M from the Jacobians, or from composite inertias), ``contact`` (geometry, law and body
-wrenches), ``mapping`` (every point wrench to generalised forces, through the
-leaves' steps), ``solve`` (the Cholesky solve or, with prescribed joints, the
+Parts (each a function of the previous part's outputs), as the dynamics forms them:
+``kinematics`` (poses and twists of the chain's points, their Jacobians and twist
+rates, the leaves' steps and, with many leaves, their world positions and
+velocities), ``mass`` (M from the Jacobians, or from composite inertias),
+``contact`` (geometry, law and wrenches: the obstacles' on many leaves component by
+component, at the leaves' chain points), ``mapping`` (every wrench to generalised
+forces, through the leaves' steps), ``solve`` (the Cholesky solve or, with prescribed joints, the
 saddle-point solve). ``flops`` are XLA's count for one call of a part
 (``cost_analysis``).
 
@@ -65,7 +67,7 @@ import numpy as np  # noqa: E402
 from _common import ROOT, environment  # noqa: E402
 
 from sorojax.dynamics._composite import composite_mass, uses_composite  # noqa: E402
-from sorojax.dynamics._contact import contact_wrenches  # noqa: E402
+from sorojax.dynamics._contact import contact_loads, contact_pairs  # noqa: E402
 from sorojax.dynamics._eom import (  # noqa: E402
     constrained_dynamics,
     mass_and_force,
@@ -177,23 +179,41 @@ def scene_parts(name, lk, q, qd, u=None):
         def mass(d, pr):
             return _mass_from_J(d, pr.J, lay.row)
 
-        kinematics = point_rates
+        def kinematics(d, q, qd):
+            pr = point_rates(d, q, qd)
+            if pr.leaf_frames is None:
+                return pr
+            # the leaves' world positions and velocities, not their poses and twists
+            return pr.core, pr.J, pr.etadot, pr.leaves, pr.leaf_frames
+
     parts = [
         ("kinematics", kinematics, (data, q, qd)),
         ("mass", mass, (data, pr)),
     ]
+    rows = None
     if lk.contact is not None:
-        parts.append(
-            ("contact", lambda g, eta: contact_wrenches(lk, t, g, eta), (pr.g, pr.eta))
-        )
+
+        def contact(pr):
+            return contact_loads(lk, t, pr.g, pr.eta, pr, lay)
+
+        parts.append(("contact", contact, (pr,)))
+        rows = contact(pr)[1]
+    # as mass_and_force: W's leaf rows are read where other loads may reach them
+    on_leaves = rows is None or (lk.contact is not None and contact_pairs(lk))
+    if rows is not None:
+        rows = jnp.ones_like(rows)
     if uses_composite(data):
 
-        def mapping(d, pr, W):
-            return force_from_wrenches(d, (*pr.records, lay, pr.leaves), W)
+        def mapping(d, pr, W, rows):
+            records = (*pr.records, lay, pr.leaves)
+            return force_from_wrenches(d, records, W, rows, on_leaves)
 
     else:
-        mapping = force_from_point_rates
-    parts.append(("mapping", mapping, (data, pr, W)))
+
+        def mapping(d, pr, W, rows):
+            return force_from_point_rates(d, pr, W, rows, on_leaves)
+
+    parts.append(("mapping", mapping, (data, pr, W, rows)))
     if u is None:
         M, f = mass_and_force(lk, data, t, q, qd)
         parts.append(("solve", spd_solve, (M, f)))

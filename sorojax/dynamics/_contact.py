@@ -758,6 +758,8 @@ def contact_loads(linkage: Linkage, t, g, eta, rates=None, lay=None):
     samples = obstacle_samples(linkage)
     leaf = lay.order[samples.point] - len(lay.core)  # leaf index (< 0: a chain point)
     on_leaf = np.flatnonzero(leaf >= 0)
+    if not len(on_leaf):  # the leaves are other contacts' samples
+        return contact_wrenches(linkage, t, g, eta), None
     li = leaf[on_leaf]
     n_leaves = frames.x.shape[1]
     whole = np.array_equal(li, np.arange(n_leaves))
