@@ -16,9 +16,11 @@ XLA's CPU fusion copies an elementwise producer into every kernel that reads it,
 unless the producer is an expensive operation (a division, a square root): terms that
 many rows share (the exp's coefficients, the step's twist, the rotated wrench) would
 be recomputed in every kernel that reads them. :func:`_kept` stacks such terms behind
-an optimisation barrier, so that XLA computes them in one kernel and stores them
-(a division by ones computed at run time would do the same at the cost of a
-division per value).
+an optimisation barrier, so that XLA stores the stack rather than moving its work
+into the kernels that read it. The barrier is lifted before XLA's fusion, which may
+still recompute a few terms in a reader; dividing the stack by ones computed at run
+time (an expensive operation, never recomputed) measured slower, a division per
+value costing more than what it saves.
 
 In the dynamics the leaves' contact with the obstacles reads their world positions
 and velocities (:class:`LeafFrames`: from the chain point's frame, without the
@@ -93,8 +95,8 @@ def applies(data) -> bool:
 def _kept(x):
     """``x`` (an array or nested lists of ``(n,)`` rows) stacked and stored.
 
-    An optimisation barrier makes XLA compute the stack in one kernel and keep it
-    (see the module docstring); the values are those of the stack.
+    Behind an optimisation barrier (see the module docstring); the values are those
+    of the stack.
     """
     return jax.lax.optimization_barrier(_stacked(x))
 
