@@ -219,12 +219,7 @@ def _obstacles_rod(self_contact: bool):
 
     plane = sj.Plane(normal=(0.005, 0.002, 1.0), motion=lift)
     ball = sj.Sphere(0.02, centre=(0.2, 0.0, 0.03))
-    rod = sj.SoftLink(
-        [sj.Division(0.3, sj.CircularSection(0.01),
-                     sj.LegendreBasis((0, 1, 1, 0, 0, 0), 2))],
-        sj.Material(E=1e6, rho=1000.0, eta=1e3),
-        joint=sj.Joint("A", axis=(0, 1, 0)),
-    )  # fmt: skip
+    rod = _rod(None).links[0]  # test_contact_kernels' rod
     contact = sj.Contact((plane, ball), law, spacing=0.3 / 39,
                          obstacle_laws={1: other},
                          self_contact=(1,) if self_contact else ())  # fmt: skip
