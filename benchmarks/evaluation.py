@@ -194,12 +194,13 @@ def scene_parts(name, lk, q, qd, u=None):
     if lk.contact is not None:
 
         def contact(pr):
-            return contact_loads(lk, t, pr.g, pr.eta, pr, lay)
+            return contact_loads(lk, t, pr, lay)
 
         parts.append(("contact", contact, (pr,)))
         rows = contact(pr)[1]
-    # as mass_and_force: W's leaf rows are read where other loads may reach them
-    on_leaves = rows is None or (lk.contact is not None and contact_pairs(lk))
+    # as mass_and_force (no point wrenches, hooks or actuators' wrenches here): W's
+    # leaf rows are read where contacts between links may reach them
+    on_leaves = lk.contact is not None and contact_pairs(lk)
     if rows is not None:
         rows = jnp.ones_like(rows)
     if uses_composite(data):

@@ -738,7 +738,7 @@ def contact_wrenches(linkage: Linkage, t, g, eta=None) -> Array:
     return _contact(linkage, t, g, eta)[0]
 
 
-def contact_loads(linkage: Linkage, t, g, eta, rates=None, lay=None):
+def contact_loads(linkage: Linkage, t, rates, lay):
     """``(W, leaf_rows)``: the body wrenches of every contact, with friction.
 
     ``rates``: the dynamics' :class:`~sorojax.kinematics._recursion.PointRates`,
@@ -752,7 +752,7 @@ def contact_loads(linkage: Linkage, t, g, eta, rates=None, lay=None):
     """
     contact = linkage.contact
     assert contact is not None
-    frames = None if rates is None else rates.leaf_frames
+    g, eta, frames = rates.g, rates.eta, rates.leaf_frames
     if frames is None or not contact.obstacles:
         return contact_wrenches(linkage, t, g, eta), None
     samples = obstacle_samples(linkage)

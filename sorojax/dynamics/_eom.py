@@ -199,7 +199,7 @@ def mass_and_force(
     """
     if rates is None:
         rates = point_rates(data, q, qd)
-    g, eta = rates.g, rates.eta
+    g = rates.g
     if kin_fn is None:
         kin_fn = lazy_kinematics(data, q, qd, rates)
     row = rows_of(data, rates)
@@ -212,28 +212,26 @@ def mass_and_force(
     Ma = _added_mass(linkage, data, idx)
     if Ma is not None:
         W_m = W_m - jnp.einsum("pab,pb->pa", Ma, rates.etadot[rows])
+    lay = chain_layout(data)
     W = point_wrenches(linkage, t, g)  # gravity: with the inertial forces
+    # whether W may hold wrenches on the leaves (static, noted with each load that
+    # may reach them): else the leaves' rows of W are not read
+    on_leaves = bool(linkage.point_wrenches)
     leaf_rows = None
     if linkage.contact is not None:
-        lay = chain_layout(data)
-        Wc, leaf_rows = contact_loads(linkage, t, g, eta, rates, lay)
+        Wc, leaf_rows = contact_loads(linkage, t, rates, lay)
         W = W + Wc
-    # whether W may hold wrenches on the leaves (static): else their rows are not read
-    on_leaves = leaf_rows is None or bool(
-        linkage.point_wrenches
-        or linkage.custom_wrench is not None
-        or u is not None
-        or contact_pairs(linkage)
-    )
+        on_leaves = on_leaves or contact_pairs(linkage)
     if linkage.custom_wrench is not None:
         read = functools.partial(linkage.custom_wrench, t, q, qd)
         W = W + custom_wrenches(linkage, data, t, q, qd, kin_fn(read))
+        on_leaves = True
     if u is not None:
         Qa, Wa = actuation_loads(linkage, data, t, q, qd, u, kin_fn, g)
         if Wa is not None:
             W = W + Wa
+            on_leaves = True
     if uses_composite(data):  # no Jacobian: every wrench by the backward sweep
-        lay = chain_layout(data)
         at = np.full(W.shape[0], len(idx))
         at[idx] = np.arange(len(idx))
         W = W + jnp.concatenate([W_m, jnp.zeros_like(W_m[:1])])[at]
