@@ -115,29 +115,47 @@ RUNTIME_FLAGS: tuple[str, ...] = (
 )
 """XLA flags :func:`set_runtime_flags` adds (the CPU runtime's, for small programs)."""
 
+RUNTIME_ENV: dict[str, str] = {
+    # The size of XLA's CPU runtime thread pool (XLA reads NPROC when JAX starts its
+    # CPU client; without it, one thread per core). The runtime hands a program's
+    # independent operations to that pool; sorojax's are a few microseconds each,
+    # and handing them to a thread on another core and back cost more than it gained.
+    # With one thread (2-core CPU, fresh processes alternating): the crawler's
+    # forward-mode rollout step 300-320 against 415-430 us, the grasp's evaluation
+    # 108 against 117 us, the 116-DoF rope's 380 against 422 us (1520 against 2135
+    # with the Jacobians' mass matrix), the clamped rod's equal. Programs run from
+    # several Python threads at once then share that one thread (they ran in
+    # parallel with two).
+    "NPROC": "1",
+}
+"""Environment variables :func:`set_runtime_flags` sets (where unset): XLA's CPU
+runtime thread pool of one thread."""
+
 _RUNTIME_FLAGS_JAXLIB = "0.10."  # the jaxlib line they are verified on
 
 
 def set_runtime_flags() -> bool:
-    """Add :data:`RUNTIME_FLAGS` to ``XLA_FLAGS`` for this process's CPU backend.
+    """Set :data:`RUNTIME_FLAGS` and :data:`RUNTIME_ENV` for this process's CPU backend.
 
-    XLA reads these flags from the environment variable ``XLA_FLAGS`` once, when JAX
+    XLA reads these flags from the environment variable ``XLA_FLAGS``, and the size
+    of its CPU runtime's thread pool from ``NPROC``, once, when JAX
     starts its backend (the first array or compile), and not from a program's
     compiler options, so sorojax cannot set them per program; call this first
     thing in a script, before any JAX array exists (the examples do; ``sorojax
     demo``, whose one program runs for a millisecond, does not). They change how
     XLA's CPU runtime runs a compiled program (its operations one after another,
-    not scheduled for concurrency), not what it
+    not scheduled for concurrency, on one runtime thread), not what it
     computes: the results agree to rounding (the order of operations may change
     the last bits; tested). They apply to every JAX program of the
-    process, yours included; a program of large operations (a neural network's
-    matrix products, a model of many coordinates: a 63-DoF rope's integration ran
-    10-20 % slower with them) may run slower without the concurrency.
+    process, yours included: a program of large operations (a neural network's
+    matrix products, which XLA would spread over the cores) may run slower (a 63-DoF
+    rope's integration ran 10-20 % slower with the scheduler's flag), and programs
+    called from several Python threads at once take turns on the one thread.
 
     Nothing is changed, and False returned, when JAX's backend has started already,
     with ``SOROJAX_XLA_OPTIONS=off``, or on a jaxlib other than the line the flags
     were verified on (an unknown XLA flag stops the process). A flag already in
-    ``XLA_FLAGS`` (yours, with any value) is kept.
+    ``XLA_FLAGS`` (yours, with any value), and an ``NPROC`` already set, are kept.
 
     Returns:
         Whether the flags are in ``XLA_FLAGS`` for the backend JAX will start.
@@ -156,6 +174,8 @@ def set_runtime_flags() -> bool:
     names = {f.split("=")[0] for f in current.split()}
     missing = [f for f in RUNTIME_FLAGS if f.split("=")[0] not in names]
     os.environ["XLA_FLAGS"] = " ".join([current, *missing]).strip()
+    for key, value in RUNTIME_ENV.items():
+        os.environ.setdefault(key, value)
     return True
 
 

@@ -8,6 +8,7 @@ side must be traced once per program however often diffrax calls it.
 """
 
 import concurrent.futures
+import sys
 import time
 import warnings
 
@@ -102,18 +103,26 @@ lk = sj.Linkage([rod], gravity=(0.0, 0.0, -9.81))
 q = np.linspace(-1.0, 1.0, lk.n_dof)
 out["q"] = np.asarray(sj.mass_matrix(lk, q)).tobytes().hex()
 out["after_start"] = sj.set_runtime_flags()
+out["nproc"] = os.environ.get("NPROC")
+if sys.platform == "linux":  # the runtime pool's threads, by name
+    tasks = [open(f"/proc/self/task/{t}/comm").read() for t in os.listdir("/proc/self/task")]
+    out["pool"] = sum(name.startswith("tf_XLAEigen") for name in tasks)
 print(json.dumps(out))
 """
 
 
-def _run_runtime_script(xla_flags):
+def _run_runtime_script(xla_flags, nproc=None):
     import json
     import os
     import subprocess
     import sys
 
-    env = {k: v for k, v in os.environ.items() if k != "SOROJAX_XLA_OPTIONS"}
+    env = {
+        k: v for k, v in os.environ.items() if k not in ("SOROJAX_XLA_OPTIONS", "NPROC")
+    }
     env["XLA_FLAGS"] = xla_flags
+    if nproc is not None:
+        env["NPROC"] = nproc
     env["SOROJAX_CACHE_DIR"] = "off"
     done = subprocess.run(
         [sys.executable, "-c", _RUNTIME_SCRIPT],
@@ -132,7 +141,8 @@ def test_set_runtime_flags_before_the_backend_only_same_results():
     user set, and changes how programs run, not what they compute: a rod's mass
     matrix agrees to rounding (1e-13; the operations' order may change the last
     bits) with the flag and with the user's opposite value (fresh processes: the
-    flags are read once per process)."""
+    flags are read once per process). NPROC=1 gives XLA's CPU runtime one pool
+    thread (the user's NPROC=2 is kept: two); /proc's thread names, Linux only."""
     if not jax.__version__.startswith("0.10."):  # the verified jaxlib line
         pytest.skip(f"the flags were verified with jax 0.10; this is {jax.__version__}")
     name = "--xla_cpu_enable_concurrency_optimized_scheduler"
@@ -141,8 +151,11 @@ def test_set_runtime_flags_before_the_backend_only_same_results():
     assert ours["flags"] == f"--xla_backend_optimization_level=0 {name}=false"
     assert ours["after_start"] is False  # the backend has started
     level = "--xla_backend_optimization_level=0"
-    theirs = _run_runtime_script(f"{level} {name}=true")
+    theirs = _run_runtime_script(f"{level} {name}=true", nproc="2")
     assert theirs["set"] is True and theirs["flags"] == f"{level} {name}=true"  # kept
+    assert ours["nproc"] == "1" and theirs["nproc"] == "2"
+    if sys.platform == "linux":  # XLA read NPROC: its pool's threads
+        assert (ours["pool"], theirs["pool"]) == (1, 2), (ours["pool"], theirs["pool"])
     a, b = (np.frombuffer(bytes.fromhex(r["q"])) for r in (ours, theirs))
     np.testing.assert_allclose(a, b, rtol=1e-13, atol=1e-15)
 
