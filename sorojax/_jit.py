@@ -115,47 +115,45 @@ RUNTIME_FLAGS: tuple[str, ...] = (
 )
 """XLA flags :func:`set_runtime_flags` adds (the CPU runtime's, for small programs)."""
 
-RUNTIME_ENV: dict[str, str] = {
-    # The size of XLA's CPU runtime thread pool (XLA reads NPROC when JAX starts its
-    # CPU client; without it, one thread per core). The runtime hands a program's
-    # independent operations to that pool; sorojax's are a few microseconds each,
-    # and handing them to a thread on another core and back cost more than it gained.
-    # With one thread (2-core CPU, fresh processes alternating): the crawler's
-    # forward-mode rollout step 300-320 against 415-430 us, the grasp's evaluation
-    # 108 against 117 us, the 116-DoF rope's 380 against 422 us (1520 against 2135
-    # with the Jacobians' mass matrix), the clamped rod's equal. Programs run from
-    # several Python threads at once then share that one thread (they ran in
-    # parallel with two).
-    "NPROC": "1",
-}
-"""Environment variables :func:`set_runtime_flags` sets (where unset): XLA's CPU
-runtime thread pool of one thread."""
-
 _RUNTIME_FLAGS_JAXLIB = "0.10."  # the jaxlib line they are verified on
 
 
-def set_runtime_flags() -> bool:
-    """Set :data:`RUNTIME_FLAGS` and :data:`RUNTIME_ENV` for this process's CPU backend.
+def set_runtime_flags(threads: int | None = None) -> bool:
+    """Add :data:`RUNTIME_FLAGS` to ``XLA_FLAGS`` for this process's CPU backend.
 
-    XLA reads these flags from the environment variable ``XLA_FLAGS``, and the size
-    of its CPU runtime's thread pool from ``NPROC``, once, when JAX
+    XLA reads these flags from the environment variable ``XLA_FLAGS`` once, when JAX
     starts its backend (the first array or compile), and not from a program's
     compiler options, so sorojax cannot set them per program; call this first
     thing in a script, before any JAX array exists (the examples do; ``sorojax
     demo``, whose one program runs for a millisecond, does not). They change how
     XLA's CPU runtime runs a compiled program (its operations one after another,
-    not scheduled for concurrency, on one runtime thread), not what it
+    not scheduled for concurrency), not what it
     computes: the results agree to rounding (the order of operations may change
     the last bits; tested). They apply to every JAX program of the
-    process, yours included: a program of large operations (a neural network's
-    matrix products, which XLA would spread over the cores) may run slower (a 63-DoF
-    rope's integration ran 10-20 % slower with the scheduler's flag), and programs
-    called from several Python threads at once take turns on the one thread.
+    process, yours included; a program of large operations (a neural network's
+    matrix products, a model of many coordinates: a 63-DoF rope's integration ran
+    10-20 % slower with them) may run slower without the concurrency.
 
     Nothing is changed, and False returned, when JAX's backend has started already,
     with ``SOROJAX_XLA_OPTIONS=off``, or on a jaxlib other than the line the flags
     were verified on (an unknown XLA flag stops the process). A flag already in
-    ``XLA_FLAGS`` (yours, with any value), and an ``NPROC`` already set, are kept.
+    ``XLA_FLAGS`` (yours, with any value) is kept.
+
+    Args:
+        threads: the size of XLA's CPU runtime thread pool (``NPROC``, which XLA
+            reads when JAX starts its CPU client), where ``NPROC`` is not set
+            already; None keeps XLA's default, a thread per core. The runtime hands
+            a program's independent operations to that pool, and splits large
+            elementwise kernels over it. ``threads=1`` suits small programs run one
+            at a time, whose operations are a few microseconds each (2-core CPU,
+            fresh processes: a forward-mode rollout step of
+            ``examples/crawler_gait.py`` 300-320 against 415-430 us, its whole
+            first run 34-36 against 37-39 s; the grasp's evaluation 108 against
+            117 us, the 116-DoF rope's 380 against 422 us); the default suits large
+            batches (a ``vmap`` over 1024 states of the clamped rod 47-51 against
+            34-39 us per case) and large arrays. With one thread, programs called
+            from several Python threads at once take turns on it (several host
+            devices still run in parallel).
 
     Returns:
         Whether the flags are in ``XLA_FLAGS`` for the backend JAX will start.
@@ -164,6 +162,11 @@ def set_runtime_flags() -> bool:
 
     from jax._src import xla_bridge
 
+    if threads is not None and (isinstance(threads, bool) or int(threads) < 1):
+        raise ValueError(
+            f"set_runtime_flags(threads={threads!r}): give a whole number of threads, "
+            "at least 1, or None for XLA's default (a thread per core)."
+        )
     if os.environ.get("SOROJAX_XLA_OPTIONS", "").lower() == "off":
         return False
     if xla_bridge.backends_are_initialized():
@@ -174,8 +177,8 @@ def set_runtime_flags() -> bool:
     names = {f.split("=")[0] for f in current.split()}
     missing = [f for f in RUNTIME_FLAGS if f.split("=")[0] not in names]
     os.environ["XLA_FLAGS"] = " ".join([current, *missing]).strip()
-    for key, value in RUNTIME_ENV.items():
-        os.environ.setdefault(key, value)
+    if threads is not None:
+        os.environ.setdefault("NPROC", str(int(threads)))
     return True
 
 

@@ -94,6 +94,8 @@ os.environ["SOROJAX_XLA_OPTIONS"] = "off"
 out["off"] = sj.set_runtime_flags()
 del os.environ["SOROJAX_XLA_OPTIONS"]
 out["set"] = sj.set_runtime_flags()
+out["nproc_default"] = os.environ.get("NPROC")
+out["set_threads"] = sj.set_runtime_flags(threads=1)
 out["flags"] = os.environ.get("XLA_FLAGS", "")
 rod = sj.SoftLink(
     [sj.Division(0.5, sj.CircularSection(0.01), sj.LegendreBasis((0, 1, 1, 0, 0, 0), 1))],
@@ -141,8 +143,9 @@ def test_set_runtime_flags_before_the_backend_only_same_results():
     user set, and changes how programs run, not what they compute: a rod's mass
     matrix agrees to rounding (1e-13; the operations' order may change the last
     bits) with the flag and with the user's opposite value (fresh processes: the
-    flags are read once per process). NPROC=1 gives XLA's CPU runtime one pool
-    thread (the user's NPROC=2 is kept: two); /proc's thread names, Linux only."""
+    flags are read once per process). Without ``threads`` NPROC is left unset;
+    ``threads=1`` sets NPROC=1, XLA's CPU runtime then has one pool thread (the
+    user's NPROC=2 is kept: two); /proc's thread names, Linux only."""
     if not jax.__version__.startswith("0.10."):  # the verified jaxlib line
         pytest.skip(f"the flags were verified with jax 0.10; this is {jax.__version__}")
     name = "--xla_cpu_enable_concurrency_optimized_scheduler"
@@ -153,11 +156,19 @@ def test_set_runtime_flags_before_the_backend_only_same_results():
     level = "--xla_backend_optimization_level=0"
     theirs = _run_runtime_script(f"{level} {name}=true", nproc="2")
     assert theirs["set"] is True and theirs["flags"] == f"{level} {name}=true"  # kept
+    assert ours["nproc_default"] is None and ours["set_threads"] is True
     assert ours["nproc"] == "1" and theirs["nproc"] == "2"
     if sys.platform == "linux":  # XLA read NPROC: its pool's threads
         assert (ours["pool"], theirs["pool"]) == (1, 2), (ours["pool"], theirs["pool"])
     a, b = (np.frombuffer(bytes.fromhex(r["q"])) for r in (ours, theirs))
     np.testing.assert_allclose(a, b, rtol=1e-13, atol=1e-15)
+
+
+@pytest.mark.parametrize("threads", [0, -2, True])
+def test_set_runtime_flags_refuses_a_thread_count_below_one(threads):
+    """A runtime pool of no thread (or a bool) is refused, naming the argument."""
+    with pytest.raises(ValueError, match=r"threads=.*at least 1"):
+        sj.set_runtime_flags(threads=threads)
 
 
 def test_jit_uses_the_options_at_top_level_only(monkeypatch):
