@@ -148,7 +148,8 @@ def set_runtime_flags(threads: int | None = None) -> bool:
             at a time, whose operations are a few microseconds each (2-core CPU,
             fresh processes: a forward-mode rollout step of
             ``examples/crawler_gait.py`` 300-320 against 415-430 us, its whole
-            first run 34-36 against 37-39 s; the grasp's evaluation 108 against
+            first run 34-36 against 37-39 s in a quiet hour, 45-55 against 58-62 s
+            in a busier one; the grasp's evaluation 108 against
             117 us, the 116-DoF rope's 380 against 422 us); the default suits large
             batches (a ``vmap`` over 1024 states of the clamped rod 47-51 against
             34-39 us per case) and large arrays. With one thread, programs called
