@@ -32,6 +32,7 @@ the same HLO program; results agree to rounding (~1e-15 relative), not bit for b
 import concurrent.futures
 import functools
 import inspect
+import numbers
 import os
 import time
 from collections.abc import Callable
@@ -163,7 +164,8 @@ def set_runtime_flags(threads: int | None = None) -> bool:
 
     from jax._src import xla_bridge
 
-    if threads is not None and (isinstance(threads, bool) or int(threads) < 1):
+    whole = isinstance(threads, numbers.Integral) and not isinstance(threads, bool)
+    if threads is not None and (not whole or threads < 1):
         raise ValueError(
             f"set_runtime_flags(threads={threads!r}): give a whole number of threads, "
             "at least 1, or None for XLA's default (a thread per core)."
@@ -179,7 +181,7 @@ def set_runtime_flags(threads: int | None = None) -> bool:
     missing = [f for f in RUNTIME_FLAGS if f.split("=")[0] not in names]
     os.environ["XLA_FLAGS"] = " ".join([current, *missing]).strip()
     if threads is not None:
-        os.environ.setdefault("NPROC", str(int(threads)))
+        os.environ.setdefault("NPROC", str(threads))
     return True
 
 

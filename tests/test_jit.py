@@ -164,9 +164,10 @@ def test_set_runtime_flags_before_the_backend_only_same_results():
     np.testing.assert_allclose(a, b, rtol=1e-13, atol=1e-15)
 
 
-@pytest.mark.parametrize("threads", [0, -2, True])
-def test_set_runtime_flags_refuses_a_thread_count_below_one(threads):
-    """A runtime pool of no thread (or a bool) is refused, naming the argument."""
+@pytest.mark.parametrize("threads", [0, -2, True, 2.5, "2"])
+def test_set_runtime_flags_refuses_a_thread_count_not_a_whole_number_from_one(threads):
+    """A runtime pool of no thread, or a count that is not a whole number (a bool,
+    a float, a string), is refused, naming the argument."""
     with pytest.raises(ValueError, match=r"threads=.*at least 1"):
         sj.set_runtime_flags(threads=threads)
 
