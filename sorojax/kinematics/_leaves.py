@@ -131,23 +131,28 @@ def _exp_and_tangent(Omega):
 
     ``Omega``: the twists ``(6, n)``; returns ``(3, 3, n)``, ``(3, n)``, ``(3, 3, n)``,
     ``(3, 3, n)``. The same closed forms (W = hat(w), V = hat(v)) and Taylor series
-    (by Horner's rule, each coefficient's own). The closed forms' sine and cosine
-    are evaluated only where some step turns by a radian or more (a ``lax.cond``):
-    XLA's CPU runs them element by element (~9 ns per value and function, the
-    largest kernel of a thousand leaves), and short steps take the series.
+    (by Horner's rule, each coefficient's own). The closed forms (a square root, a
+    sine, a cosine and five divisions per step) are evaluated only where some step
+    turns by a radian or more (a ``lax.cond``): XLA's CPU runs sine and cosine
+    element by element (~9 ns per value and function, the largest kernel of a
+    thousand leaves), and short steps take the series.
     """
     w, v = Omega[:3], Omega[3:]
     th2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
     small = th2 < _SMALL
-    t2 = jnp.where(small, 1.0, th2)
-    t = jnp.sqrt(t2)
-    sc = jax.lax.cond(
+
+    def closed_rows(th2):
+        t2 = jnp.where(small, 1.0, th2)
+        t = jnp.sqrt(t2)
+        sc = _kept([jnp.sin(t), jnp.cos(t)])
+        return _kept(list(closed_forms(t, t2, sc[0], sc[1])))
+
+    closed = jax.lax.cond(
         jnp.all(small),
-        lambda t: jnp.stack([jnp.zeros_like(t), jnp.ones_like(t)]),  # not read
-        lambda t: _kept([jnp.sin(t), jnp.cos(t)]),
-        t,
+        lambda th2: jnp.zeros((5,) + th2.shape, th2.dtype),  # not read
+        closed_rows,
+        th2,
     )
-    closed = closed_forms(t, t2, sc[0], sc[1])
     coef = []
     for col, closed_form in zip(_SERIES.T, closed, strict=True):
         series = jnp.full_like(th2, col[-1])
