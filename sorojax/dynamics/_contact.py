@@ -30,6 +30,7 @@ from ..kinematics._api import _as_q
 from ..kinematics._leaves import _cross, _mat_vec
 from ..model._contact import (
     Contact,
+    Plane,
     _safe_norm,
     contact_links,
     pair_capacity,
@@ -326,16 +327,22 @@ def _obstacle_rows(contact: Contact, samples: Samples, frames, t, friction: bool
     for k, ob in enumerate(contact.obstacles):
         G, Gd = ob.frame(t)
         RG, pG = G[:3, :3], G[:3, 3:]
-        xl = jnp.stack(_mat_vec(RG, x - pG, transpose=True))
-        phi, grad = jax.vmap(
-            jax.value_and_grad(ob.distance), in_axes=1, out_axes=(0, 1)
-        )(xl)
-        n = jnp.stack(_mat_vec(RG, grad))
-        n = n / jnp.maximum(_safe_norm(n, axis=0), 1e-12)[None]
+        if isinstance(ob, Plane):  # one normal for every sample: no per-sample grad
+            n = RG @ ob.normal
+            n = (n / jnp.maximum(_safe_norm(n), 1e-12))[:, None]
+            phi = jnp.sum((x - pG) * n, axis=0) - jnp.dot(ob.point, ob.normal)
+        else:
+            xl = jnp.stack(_mat_vec(RG, x - pG, transpose=True))
+            phi, grad = jax.vmap(
+                jax.value_and_grad(ob.distance), in_axes=1, out_axes=(0, 1)
+            )(xl)
+            n = jnp.stack(_mat_vec(RG, grad))
+            n = n / jnp.maximum(_safe_norm(n, axis=0), 1e-12)[None]
         x_c = x - r * n
-        xo = jnp.stack(_mat_vec(RG, x_c - pG, transpose=True))
-        v_obs = jnp.stack(_mat_vec(Gd[:3, :3], xo)) + Gd[:3, 3:]
-        v_rel = v + jnp.stack(_cross(w, x_c - x)) - v_obs
+        v_rel = v + jnp.stack(_cross(w, x_c - x))
+        if ob.motion is not None:  # the obstacle's own velocity at x_c
+            xo = jnp.stack(_mat_vec(RG, x_c - pG, transpose=True))
+            v_rel = v_rel - (jnp.stack(_mat_vec(Gd[:3, :3], xo)) + Gd[:3, 3:])
         f, _, _ = _law_forces(
             contact.obstacle_law(k),
             r[0] - phi,
