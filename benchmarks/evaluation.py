@@ -37,6 +37,10 @@ forces, through the leaves' steps), ``solve`` (the Cholesky solve or, with presc
 saddle-point solve). ``flops`` are XLA's count for one call of a part
 (``cost_analysis``).
 
+Without ``--quick``, ``sample_ratio``: ``forward_dynamics`` of the rod with 1000
+floor samples over the rod without contact (long-run options), the two loops timed
+in turns, nine rounds: the median of the rounds' ratios.
+
 The floor beside each evaluation: its flops at the rate this machine sustains on
 fused float64 elementwise arithmetic (measured here: a degree-20 polynomial on 1e6
 numbers), i.e. the time if the evaluation were flop-bound and perfectly fused.
@@ -281,6 +285,42 @@ def _jacobians(on: bool):
         _precompute.MIN_GROUP_DOF = least
 
 
+def sample_ratio(rounds: int = 9, n: int = 200) -> dict:
+    """``forward_dynamics`` of the rod with 1000 floor samples over the same rod
+    without contact, both looped with the long-run options and timed in turns
+    (``rounds`` each), so that the machine's drift meets both alike."""
+    loops = {}
+    for label, samples in (("no contact", None), ("1000 samples", 1000)):
+        lk = resting_rod(samples)
+        q, qd = jnp.zeros(lk.n_dof), jnp.full(lk.n_dof, 0.01)
+
+        def run(q, qd, lk=lk):
+            def body(i, acc):
+                qdd = sj.forward_dynamics(lk, _nudge(q, acc), qd)
+                return 1e-30 * jnp.sum(qdd)
+
+            return jax.lax.fori_loop(0, n, body, jnp.zeros(()))
+
+        c = jax.jit(run, compiler_options=sj.compiler_options(True)).lower(q, qd)
+        loops[label] = (c.compile(), (q, qd))
+        jax.block_until_ready(loops[label][0](q, qd))
+    times = {label: [] for label in loops}
+    for _ in range(rounds):
+        for label, (c, args) in loops.items():
+            t0 = time.perf_counter()
+            jax.block_until_ready(c(*args))
+            times[label].append((time.perf_counter() - t0) / n * 1e6)
+    pairs = zip(times["1000 samples"], times["no contact"], strict=True)
+    ratios = [a / b for a, b in pairs]
+    out = {k: statistics.median(v) for k, v in times.items()}
+    out["ratio"] = statistics.median(ratios)
+    out["ratio_range"] = [min(ratios), max(ratios)]
+    print(f"1000 samples against none, in turns: {out['1000 samples']:.1f} / "
+          f"{out['no contact']:.1f} us = {out['ratio']:.2f}x "
+          f"({min(ratios):.2f}-{max(ratios):.2f})")  # fmt: skip
+    return out
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--quick", action="store_true", help="no 1000-sample case")
@@ -301,7 +341,8 @@ def main():
         row["floor_us"] = ev["flops"] / rate * 1e6
         print(f"{name:28s} floor (flops / rate) {row['floor_us']:.1f} us")
         rows.append(row)
-    res = environment(flop_rate=rate, scenes=rows)
+    ratio = None if a.quick else sample_ratio()
+    res = environment(flop_rate=rate, scenes=rows, sample_ratio=ratio)
     out = ROOT / "benchmarks" / "results" / "evaluation.json"
     out.parent.mkdir(exist_ok=True)
     out.write_text(json.dumps(res, indent=1))
