@@ -250,11 +250,13 @@ def test_two_divisions_agree_with_the_stacked_kernels(two_divisions):
     _close(new, old, 1e-11)
 
 
-def _obstacles_rod(self_contact: bool):
-    """40 samples against a moving tilted plane (forward friction) and a sphere.
+def _obstacles_rod(self_contact: bool, moving: bool = True):
+    """40 samples against a tilted plane (forward friction) and a sphere.
 
     The sphere has its own law; with ``self_contact`` the rod's segment pairs load
-    the leaves as well (their wrenches then reach the leaves' rows both ways).
+    the leaves as well (their wrenches then reach the leaves' rows both ways). The
+    plane moves, or (``moving`` False) stands still, offset and in a frame of its
+    own (the rows path then meets it in the chain points' frames).
     """
     law = sj.ContactLaw(stiffness=1e4, smoothing=1e-4, damping=10.0,
                         static_friction=0.5, forward_friction=0.2)  # fmt: skip
@@ -264,7 +266,15 @@ def _obstacles_rod(self_contact: bool):
     def lift(t):
         return jnp.eye(4).at[2, 3].set(0.002 * jnp.sin(3.0 * t)).at[0, 3].set(0.01 * t)
 
-    plane = sj.Plane(normal=(0.005, 0.002, 1.0), motion=lift)
+    if moving:
+        plane = sj.Plane(normal=(0.005, 0.002, 1.0), motion=lift)
+    else:
+        pose = np.array(lift(0.4))
+        axis = np.array([0.3, -0.4, 70.0]) / np.linalg.norm([0.3, -0.4, 70.0])
+        K = np.cross(np.eye(3), axis)  # hat(axis); then Rodrigues' rotation by 0.7
+        pose[:3, :3] = np.eye(3) + np.sin(0.7) * K + (1 - np.cos(0.7)) * K @ K
+        plane = sj.Plane(point=(0.01, 0.02, 0.001), normal=(0.005, 0.002, 1.0),
+                         pose=pose)  # fmt: skip
     ball = sj.Sphere(0.02, centre=(0.2, 0.0, 0.03))
     rod = _rod(None).links[0]  # test_contact_kernels' rod
     contact = sj.Contact((plane, ball), law, spacing=0.3 / 39,
@@ -277,10 +287,12 @@ def _obstacles_rod(self_contact: bool):
     )
 
 
-@pytest.mark.parametrize("self_contact", [False, True])
-def test_obstacles_on_the_leaves_rows_agree_with_the_stacked_path(self_contact):
+@pytest.mark.parametrize(
+    "self_contact, moving", [(False, True), (True, True), (False, False)]
+)
+def test_obstacles_on_the_leaves_rows_agree_with_the_stacked_path(self_contact, moving):
     """``(M, f)`` and their forward derivatives, both obstacles touching."""
-    lk = _obstacles_rod(self_contact)
+    lk = _obstacles_rod(self_contact, moving)
     data = precompute(lk)
     assert _leaves.applies(data)
     rng = np.random.default_rng(11)

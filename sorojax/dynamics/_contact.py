@@ -313,25 +313,42 @@ def _obstacle_terms(contact: Contact, samples: Samples, g, eta, t, friction: boo
 def _obstacle_rows(contact: Contact, samples: Samples, frames, t, friction: bool):
     """The obstacles' wrenches ``(6, n)`` on samples, component by component.
 
-    ``frames``: the samples' world positions and velocities with the frames their
-    wrenches are given in (:class:`~sorojax.kinematics._leaves.LeafFrames`). The
-    contact of :func:`_obstacle_terms` and :func:`_point_wrenches` with every
-    quantity a row over the samples (each kernel a loop over them,
-    :mod:`sorojax.kinematics._leaves`): the obstacles' forces ``f`` at the
-    contact points ``x_c`` are summed in the world frame as the wrench ``((x_c -
-    o) x f, f)`` about the frame's origin ``o``, then turned into the frame.
+    ``frames``: the samples' positions and velocities, in the world and in the
+    frames of their chain points, where their wrenches are given
+    (:class:`~sorojax.kinematics._leaves.LeafFrames`). The contact of
+    :func:`_obstacle_terms` and :func:`_point_wrenches` with every quantity a row
+    over the samples (each kernel a loop over them, :mod:`sorojax.kinematics.
+    _leaves`). A static plane meets each sample in its chain point's frame (its
+    normal turned into that frame; the wrench ``((p - r n) x f, f)`` about the
+    frame's origin is then the row): no sample's world position, velocity or
+    wrench is formed for it. Any other obstacle meets them in the world, one
+    gradient of its distance per sample: its forces ``f`` at the contact points
+    ``x_c`` are summed in the world as the wrench ``((x_c - o) x f, f)`` about the
+    chain point ``o``, then turned into its frame.
     """
-    R, o, x, w, v = frames.R, frames.o, frames.x, frames.w, frames.v
+    R, o = frames.R, frames.o
     r = samples.radius[None]
-    m_w = f_w = jnp.zeros_like(x)
+    sums = {True: None, False: None}  # (m, f) in the chain points' frames, world
     for k, ob in enumerate(contact.obstacles):
         G, Gd = ob.frame(t)
         RG, pG = G[:3, :3], G[:3, 3:]
-        if isinstance(ob, Plane):  # one normal for every sample: no per-sample grad
-            n = RG @ ob.normal
-            n = (n / jnp.maximum(_safe_norm(n), 1e-12))[:, None]
-            phi = jnp.sum((x - pG) * n, axis=0) - jnp.dot(ob.point, ob.normal)
+        plane = isinstance(ob, Plane)
+        local = plane and ob.motion is None
+        if plane:  # one normal for every sample: no per-sample gradient
+            n_w = RG @ ob.normal
+            n_w = n_w / jnp.maximum(_safe_norm(n_w), 1e-12)
+            height = -jnp.dot(ob.point, ob.normal)  # of the frame's origin
+        if local:
+            x, w, v = frames.p, frames.w_c, frames.v_c
+            n = jnp.stack(_mat_vec(R, n_w, transpose=True))
+            height = height + jnp.sum((o - pG) * n_w[:, None], axis=0)
+            phi = jnp.sum(x * n, axis=0) + height
+        elif plane:
+            x, w, v = frames.x, frames.w, frames.v
+            n = n_w[:, None]
+            phi = jnp.sum((x - pG) * n, axis=0) + height
         else:
+            x, w, v = frames.x, frames.w, frames.v
             xl = jnp.stack(_mat_vec(RG, x - pG, transpose=True))
             phi, grad = jax.vmap(
                 jax.value_and_grad(ob.distance), in_axes=1, out_axes=(0, 1)
@@ -350,12 +367,17 @@ def _obstacle_rows(contact: Contact, samples: Samples, frames, t, friction: bool
             v_rel,
             samples.weight,
             friction,
-            axis=frames.axis,
+            axis=frames.axis_c if local else frames.axis,
             comp=0,
         )
-        m_w = m_w + jnp.stack(_cross(x_c - o, f))
-        f_w = f_w + f
-    return jnp.stack(_mat_vec(R, m_w, True) + _mat_vec(R, f_w, True))
+        m = jnp.stack(_cross(x_c if local else x_c - o, f))
+        old = sums[local]
+        sums[local] = (m, f) if old is None else (old[0] + m, old[1] + f)
+    rows = [jnp.concatenate(sums[True])] if sums[True] is not None else []
+    if sums[False] is not None:
+        m_w, f_w = sums[False]
+        rows.append(jnp.stack(_mat_vec(R, m_w, True) + _mat_vec(R, f_w, True)))
+    return sum(rows[1:], rows[0])
 
 
 def segment_closest(p0, p1, q0, q1):

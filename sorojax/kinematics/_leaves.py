@@ -49,14 +49,18 @@ from ._step import _SERIES, _SMALL, closed_forms
 
 
 class LeafFrames(NamedTuple):
-    """The leaves' world positions and velocities, component by component.
+    """The leaves' positions and velocities, component by component.
 
     ``R`` ``(3, 3, n)`` and ``o`` ``(3, n)``: the world frame of each leaf's chain
     point; ``x`` ``(3, n)``: the leaf's world position; ``w``, ``v`` ``(3, n)``: its
     world angular velocity and the world velocity of its origin; ``axis`` ``(3,
-    n)``: its first body axis in the world. What the obstacles' contact reads
-    (:func:`~sorojax.dynamics._contact.contact_loads`); a wrench there comes back
-    in the chain point's frame, as :func:`leaf_wrenches` takes it.
+    n)``: its first body axis in the world; ``p``, ``w_c``, ``v_c``, ``axis_c``
+    ``(3, n)``: its position, angular velocity, velocity and first body axis in
+    its chain point's frame. What the obstacles' contact reads
+    (:func:`~sorojax.dynamics._contact.contact_loads`: a static plane in the
+    chain points' frames, any other obstacle in the world; XLA drops what none
+    reads); a wrench there comes back in the chain point's frame, as
+    :func:`leaf_wrenches` takes it.
     """
 
     R: Array
@@ -65,6 +69,10 @@ class LeafFrames(NamedTuple):
     w: Array
     v: Array
     axis: Array
+    p: Array
+    w_c: Array
+    v_c: Array
+    axis_c: Array
 
 
 class LeafRecord(NamedTuple):
@@ -235,6 +243,10 @@ def leaf_rates(data, lay, q, qd, g_core, eta_core):
         _stacked(_mat_vec(Rc, x[:3])),
         _stacked(_mat_vec(Rc, xv)),
         _stacked(cols[0]),
+        p,
+        x[:3],
+        _stacked(xv),
+        _stacked([R[0, 0], R[1, 0], R[2, 0]]),
     )
     zero, unit = jnp.zeros_like(p[0]), jnp.ones_like(p[0])
     g = [[cols[0][i], cols[1][i], cols[2][i], pw[i]] for i in range(3)]
