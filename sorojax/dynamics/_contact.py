@@ -310,21 +310,24 @@ def _obstacle_terms(contact: Contact, samples: Samples, g, eta, t, friction: boo
     return loads, rows
 
 
-def _obstacle_rows(contact: Contact, samples: Samples, frames, t, friction: bool):
+def _obstacle_rows(contact: Contact, samples: Samples, frames, t, chain):
     """The obstacles' wrenches ``(6, n)`` on samples, component by component.
 
     ``frames``: the samples' positions and velocities, in the world and in the
     frames of their chain points, where their wrenches are given
-    (:class:`~sorojax.kinematics._leaves.LeafFrames`). The contact of
+    (:class:`~sorojax.kinematics._leaves.LeafFrames`); ``chain``: ``(g_c, row)``,
+    the chain points' poses ``(n_core, 4, 4)`` and each sample's chain point
+    (static). With friction. The contact of
     :func:`_obstacle_terms` and :func:`_point_wrenches` with every quantity a row
     over the samples (each kernel a loop over them, :mod:`sorojax.kinematics.
     _leaves`). A static plane meets each sample in its chain point's frame (its
-    normal turned into that frame; the wrench ``((p - r n) x f, f)`` about the
-    frame's origin is then the row): no sample's world position, velocity or
-    wrench is formed for it. Any other obstacle meets them in the world, one
-    gradient of its distance per sample: its forces ``f`` at the contact points
-    ``x_c`` are summed in the world as the wrench ``((x_c - o) x f, f)`` about the
-    chain point ``o``, then turned into its frame.
+    normal and height turned into each chain point's frame, then read by its
+    samples; the wrench ``((p - r n) x f, f)`` about the frame's origin is then the
+    row): no sample's world frame, position, velocity or wrench is formed for
+    it. Any other obstacle meets them in the world, one gradient of its distance
+    per sample: its forces ``f`` at the contact points ``x_c`` are summed in the
+    world as the wrench ``((x_c - o) x f, f)`` about the chain point ``o``, then
+    turned into its frame.
     """
     R, o = frames.R, frames.o
     r = samples.radius[None]
@@ -337,12 +340,16 @@ def _obstacle_rows(contact: Contact, samples: Samples, frames, t, friction: bool
         if plane:  # one normal for every sample: no per-sample gradient
             n_w = RG @ ob.normal
             n_w = n_w / jnp.maximum(_safe_norm(n_w), 1e-12)
-            height = -jnp.dot(ob.point, ob.normal)  # of the frame's origin
+            height = -jnp.dot(ob.point, ob.normal)  # phi = n_w . (x - pG) + height
         if local:
             x, w, v = frames.p, frames.w_c, frames.v_c
-            n = jnp.stack(_mat_vec(R, n_w, transpose=True))
-            height = height + jnp.sum((o - pG) * n_w[:, None], axis=0)
-            phi = jnp.sum(x * n, axis=0) + height
+            g_c, row = chain
+            Rc, oc = g_c[:, :3, :3], g_c[:, :3, 3]
+            n_c = [sum(Rc[:, j, i] * n_w[j] for j in range(3)) for i in range(3)]
+            h_c = height + sum((oc[:, j] - pG[j, 0]) * n_w[j] for j in range(3))
+            n_h = jnp.stack(n_c + [h_c])[:, row]
+            n = n_h[:3]
+            phi = jnp.sum(x * n, axis=0) + n_h[3]
         elif plane:
             x, w, v = frames.x, frames.w, frames.v
             n = n_w[:, None]
@@ -366,7 +373,7 @@ def _obstacle_rows(contact: Contact, samples: Samples, frames, t, friction: bool
             n,
             v_rel,
             samples.weight,
-            friction,
+            True,
             axis=frames.axis_c if local else frames.axis,
             comp=0,
         )
@@ -794,7 +801,8 @@ def contact_loads(linkage: Linkage, t, rates, lay):
     whole = np.array_equal(li, np.arange(n_leaves))
     if not whole:
         frames = jax.tree.map(lambda a: a[..., li], frames)
-    rows = _obstacle_rows(contact, _subset(samples, on_leaf), frames, t, True)
+    chain = (rates.core[0], lay.leaf_row[li])
+    rows = _obstacle_rows(contact, _subset(samples, on_leaf), frames, t, chain)
     if not whole:
         rows = jnp.zeros((6, n_leaves), rows.dtype).at[:, li].add(rows)
     if contact_pairs(linkage):
