@@ -27,7 +27,7 @@ import sorojax as sj
 from sorojax.dynamics._contact import _add_rows
 from sorojax.dynamics._eom import mass_and_force
 from sorojax.dynamics._wrench_recursion import force_from_point_rates
-from sorojax.kinematics import _leaves, _recursion
+from sorojax.kinematics import _leaves
 from sorojax.kinematics._recursion import (
     chain_layout,
     leaf_sums,
@@ -170,21 +170,16 @@ def test_steps_all_under_a_radian_agree_with_the_stacked_kernels(rod):
     _close(new, old, 1e-11)
 
 
-def test_leaf_sums_by_slices_and_by_prefix_sums_equal_a_scatter_add(rod, monkeypatch):
-    """Each chain point's sum of its leaves' rows, by static slices (few chain
-    points) and by differences of prefix sums (many): the sums of a scatter-add,
-    to rounding (1e-13 of the largest sum)."""
+def test_leaf_sums_equal_a_scatter_add(rod):
+    """Each chain point's sum of its leaves' rows (differences of prefix sums): the
+    sums of a scatter-add, to rounding (1e-13 of the largest sum)."""
     lay = chain_layout(precompute(rod))
-    n_leaves = len(lay.leaf_row)
-    y = np.random.default_rng(9).normal(size=(n_leaves, 6))
+    y = np.random.default_rng(9).normal(size=(len(lay.leaf_row), 6))
     ref = np.zeros((len(lay.core), 6))
     np.add.at(ref, lay.leaf_row, y)
     assert np.count_nonzero(lay.leaf_stop > lay.leaf_first) > 1
-    sliced = leaf_sums(lay, jnp.asarray(y))
-    monkeypatch.setattr(_recursion, "MAX_SLICED_SUMS", 0)
-    prefix = leaf_sums(lay, jnp.asarray(y))
-    for sums in (sliced, prefix):
-        assert np.max(np.abs(np.asarray(sums) - ref)) <= 1e-13 * np.max(np.abs(ref))
+    sums = np.asarray(leaf_sums(lay, jnp.asarray(y)))
+    assert np.max(np.abs(sums - ref)) <= 1e-13 * np.max(np.abs(ref))
 
 
 def test_vmap_equals_plain_calls(rod, state):

@@ -562,28 +562,14 @@ def with_leaves(lay: ChainLayout, core, leaves) -> Array:
     return jnp.concatenate([core, leaves])[lay.order]
 
 
-# Chain points with leaves up to which :func:`leaf_sums` sums each one's leaves as a
-# static slice; beyond, by prefix sums (a smaller program: each slice adds to it,
-# 122 chain points' sums compiled 0.9 s longer).
-MAX_SLICED_SUMS = 32
-
-
 def leaf_sums(lay: ChainLayout, y) -> Array:
     """``(n_core, ...)``: the sum of the leaves' rows ``y`` at each one's chain point.
 
-    Leaves of one chain point are consecutive (no scatter-add: slow under
-    ``vmap``). For up to :data:`MAX_SLICED_SUMS` chain points with leaves each sum
-    is a reduction of a static slice (a thousand leaves on 12 chain points: 6
-    against 10 us for the prefix sums' scan on a 2-core CPU); beyond, a difference
-    of two prefix sums.
+    Leaves of one chain point are consecutive, so each sum is a difference of two
+    prefix sums (gathers only: a scatter-add is slow under ``vmap``).
     """
-    first, stop = lay.leaf_first, lay.leaf_stop
-    if np.count_nonzero(stop > first) <= MAX_SLICED_SUMS:
-        zero = jnp.zeros_like(y[0])
-        sums = zip(first, stop, strict=True)
-        return jnp.stack([jnp.sum(y[a:b], axis=0) if b > a else zero for a, b in sums])
     c = jnp.concatenate([jnp.zeros_like(y[:1]), jnp.cumsum(y, axis=0)])
-    return c[stop] - c[first]
+    return c[lay.leaf_stop] - c[lay.leaf_first]
 
 
 def poses_and_jacobians(
