@@ -317,8 +317,8 @@ def _obstacle_rows(contact: Contact, samples: Samples, frames, t, chain):
     frames of their chain points, where their wrenches are given
     (:class:`~sorojax.kinematics._leaves.LeafFrames`); ``chain``: ``(g_c, row)``,
     the chain points' poses ``(n_core, 4, 4)`` and each sample's chain point
-    (static). With friction. The contact of
-    :func:`_obstacle_terms` and :func:`_point_wrenches` with every quantity a row
+    (static). The contact of :func:`_obstacle_terms` (friction included) and
+    :func:`_point_wrenches` with every quantity a row
     over the samples (each kernel a loop over them, :mod:`sorojax.kinematics.
     _leaves`). A static plane meets each sample in its chain point's frame (its
     normal and height turned into each chain point's frame, then read by its
