@@ -96,13 +96,13 @@ def _nudge(x, acc):
     return jax.tree.map(lambda a: a + 0.0 * acc.astype(a.dtype), x)
 
 
-def per_call(fn, args, n, repeats, long_run=False):
-    """Median time [s] of one ``fn(*args)`` inside a compiled loop of ``n`` calls,
-    the compile time of that loop [s] and XLA's flop count of one call.
+def loop_program(fn, args, n, long_run=False):
+    """``fn(*args)`` called ``n`` times in a compiled ``lax.fori_loop``: the
+    compiled program (called with ``args``) and its compile time [s].
 
     A :class:`LinkageData` argument (the model's arrays) is the same in every call,
     as inside ``simulate``; the others are made to depend on the previous call.
-    ``long_run``: the loop compiled with ``sorojax.compiler_options(long_run=True)``.
+    ``long_run``: compiled with ``sorojax.compiler_options(long_run=True)``.
     """
     fixed = [isinstance(a, LinkageData) for a in args]
 
@@ -120,7 +120,15 @@ def per_call(fn, args, n, repeats, long_run=False):
     opts = sj.compiler_options(long_run)  # as sorojax compiles its programs
     t0 = time.perf_counter()
     c = jax.jit(run, compiler_options=opts).lower(args).compile()
-    compile_s = time.perf_counter() - t0
+    return c, time.perf_counter() - t0
+
+
+def per_call(fn, args, n, repeats, long_run=False):
+    """Median time [s] of one ``fn(*args)`` inside a compiled loop of ``n`` calls
+    (:func:`loop_program`), the compile time of that loop [s] and XLA's flop count
+    of one call."""
+    c, compile_s = loop_program(fn, args, n, long_run)
+    opts = sj.compiler_options(long_run)
     one = jax.jit(fn, compiler_options=opts).lower(*args).compile()
     flops = one.cost_analysis().get("flops", np.nan)
     jax.block_until_ready(c(args))
@@ -292,23 +300,19 @@ def sample_ratio(rounds: int = 9, n: int = 200) -> dict:
     loops = {}
     for label, samples in (("no contact", None), ("1000 samples", 1000)):
         lk = resting_rod(samples)
-        q, qd = jnp.zeros(lk.n_dof), jnp.full(lk.n_dof, 0.01)
+        args = (jnp.zeros(lk.n_dof), jnp.full(lk.n_dof, 0.01))
 
-        def run(q, qd, lk=lk):
-            def body(i, acc):
-                qdd = sj.forward_dynamics(lk, _nudge(q, acc), qd)
-                return 1e-30 * jnp.sum(qdd)
+        def fd(q, qd, lk=lk):
+            return sj.forward_dynamics(lk, q, qd)
 
-            return jax.lax.fori_loop(0, n, body, jnp.zeros(()))
-
-        c = jax.jit(run, compiler_options=sj.compiler_options(True)).lower(q, qd)
-        loops[label] = (c.compile(), (q, qd))
-        jax.block_until_ready(loops[label][0](q, qd))
+        c, _ = loop_program(fd, args, n, long_run=True)
+        jax.block_until_ready(c(args))
+        loops[label] = (c, args)
     times = {label: [] for label in loops}
     for _ in range(rounds):
         for label, (c, args) in loops.items():
             t0 = time.perf_counter()
-            jax.block_until_ready(c(*args))
+            jax.block_until_ready(c(args))
             times[label].append((time.perf_counter() - t0) / n * 1e6)
     pairs = zip(times["1000 samples"], times["no contact"], strict=True)
     ratios = [a / b for a, b in pairs]

@@ -246,7 +246,7 @@ def leaf_rates(data, lay, q, qd, g_core, eta_core):
         p,
         x[:3],
         _stacked(xv),
-        _stacked([R[0, 0], R[1, 0], R[2, 0]]),
+        R[:, 0],
     )
     zero, unit = jnp.zeros_like(p[0]), jnp.ones_like(p[0])
     g = [[cols[0][i], cols[1][i], cols[2][i], pw[i]] for i in range(3)]
