@@ -254,3 +254,18 @@ def test_broad_phase_overflow_is_a_result_code_not_a_missed_contact():
     assert tr.result == sj.RESULTS.contact_overflow
     with pytest.raises(ValueError, match="pair_capacity"):
         sj.Contact((), sj.ContactLaw(stiffness=1.0), pair_capacity=0)
+
+
+@pytest.mark.parametrize("n_true", [0, 3, 8, 40])
+def test_broad_phase_compaction_equals_nonzero(n_true):
+    """The candidates' compaction is ``jnp.nonzero(mask, size=k, fill_value=0)``
+    (exact integers): fewer, as many and more True entries than ``k = 8``."""
+    from sorojax.dynamics._contact import _first_true
+
+    rng = np.random.default_rng(n_true)
+    mask = np.zeros(97, bool)
+    mask[rng.choice(97, n_true, replace=False)] = True
+    mask = jnp.asarray(mask)
+    idx, count = jax.jit(_first_true, static_argnums=1)(mask, 8)
+    np.testing.assert_array_equal(idx, jnp.nonzero(mask, size=8, fill_value=0)[0])
+    assert int(count) == n_true

@@ -522,6 +522,19 @@ def _capacity(contact: Contact, entry) -> int:
     return pair_capacity(contact, len(ia), n_seg)
 
 
+def _first_true(mask, k: int):
+    """``(idx, count)``: indices of ``mask``'s first ``k`` True entries; their count.
+
+    Indices past the count are 0: ``jnp.nonzero(mask, size=k, fill_value=0)``
+    without its scatter. The m-th True entry is where the running count first
+    reaches m, a binary search of the ``k`` counts in the prefix sum (XLA's CPU
+    backend runs a scatter as a loop over its rows).
+    """
+    c = jnp.cumsum(mask.astype(int))
+    idx = jnp.searchsorted(c, jnp.arange(1, k + 1, dtype=c.dtype), method="scan")
+    return jnp.where(idx < mask.shape[0], idx, 0), c[-1]
+
+
 def _candidates(contact: Contact, g, entry):
     """``(ia, ib, valid, overflow)``: the segment pairs the narrow phase examines.
 
@@ -529,8 +542,8 @@ def _candidates(contact: Contact, g, entry):
     pair; else the broad phase: each segment's bounding sphere (centre at its
     midpoint, radius half its length plus its larger end radius), grown by the law's
     reach (``smoothing``, a barrier's gap), and the pairs whose spheres overlap,
-    gathered in their order into ``K`` rows (``jnp.nonzero`` with a fixed size:
-    a prefix sum, no sort); ``valid`` marks the rows that hold one (the others
+    gathered in their order into ``K`` rows (:func:`_first_true`: a prefix sum and
+    a binary search, no sort); ``valid`` marks the rows that hold one (the others
     repeat pair 0 and carry no force). A pair left out has spheres apart, so its
     segments are further apart than their radii and the reach: no force. More
     overlapping pairs than ``K`` is an ``overflow``.
@@ -551,10 +564,13 @@ def _candidates(contact: Contact, g, entry):
     cA, RA = spheres(sa, ga)
     cB, RB = (cA, RA) if sa is sb else spheres(sb, gb)
     reach = jnp.maximum(jax.lax.stop_gradient(contact.law.smoothing), 0.0)
-    gap = _safe_norm(cA[ia] - cB[ib]) - RA[ia] - RB[ib] - reach
-    near = gap < 0
-    (idx,) = jnp.nonzero(near, size=k, fill_value=0)
-    count = jnp.sum(near)
+    # squared distances, one coordinate row at a time: elementwise over the pairs
+    # (XLA's CPU backend forms a norm over the short last axis of the (pairs, 3)
+    # differences in a kernel many times slower)
+    xA, xB = cA.T, cB.T
+    d2 = sum((xA[i][ia] - xB[i][ib]) ** 2 for i in range(3))
+    near = ~(d2 >= (RA[ia] + RB[ib] + reach) ** 2)  # NaN: cannot be ruled out
+    idx, count = _first_true(near, k)
     valid = jnp.arange(k) < count
     return jnp.asarray(ia)[idx], jnp.asarray(ib)[idx], valid, count > k
 
