@@ -1236,11 +1236,7 @@ def _joint(kind: str, normal_local) -> sj.Joint:
 
 
 # ------------------------------------------------------------------- the solvers
-# sorojax's compiler options at XLA's default level: the capstan runs 7 % faster
-# than under equinox's plain jit; sorojax's long-run options and its runtime flags
-# (XLA_FLAGS) measured slower on that 63-DoF model, and are not used.
-@functools.partial(sj.jit, tiered=False)
-def _advance(
+def _advance_chunk(
     linkage: sj.Linkage,
     sampler: sj.Linkage,
     nodes,
@@ -1293,6 +1289,15 @@ def _advance(
         return jax.tree.map(lambda a: a[None], out)
     in_angles = None if angles is None else 0
     return jax.vmap(one, in_axes=(0, in_angles))(y, angles)
+
+
+# sorojax's compiler options at XLA's default level: the capstan runs 7 % faster
+# than under equinox's plain jit; sorojax's long-run options and its runtime flags
+# (XLA_FLAGS) measured slower on that 63-DoF model. A heap (the pile: 111 DoF,
+# thousands of self-contact pairs) runs its Tsit5 steps ~5 % faster with the
+# long-run options (XLA's YNNPACK fusions off).
+_advance = sj.jit(_advance_chunk, tiered=False)
+_advance_long = sj.jit(_advance_chunk, tiered=False, long_run=True)
 
 
 # ------------------------------------------------------------------- the adapter
@@ -1602,7 +1607,8 @@ class SorojaxSolver:
         C = FRAME_CHUNK
         for k in range(1, T, C):
             chunk = np.minimum(np.arange(k, k + C), T - 1)  # pad with the last frame
-            ys, p, d, ok, _ = _advance(
+            advance = _advance_long if heap else _advance
+            ys, p, d, ok, _ = advance(
                 mdl.linkage,
                 mdl.sampler,
                 mdl.nodes,
