@@ -49,6 +49,7 @@ from ._step import (
     magnus6,
     magnus6_apply,
     magnus6_apply_transpose,
+    tangent_apply,
 )
 
 
@@ -67,8 +68,9 @@ class Steps(NamedTuple):
 
     ``R, p, T``: exp(Omega) and the tangent operator; ``xi1, xi2``: strains at the
     Zanna points (4th-order steps); ``xi``: strains at the 3 nodes
-    ``(n_steps, 3, 6)`` (6th-order steps); with velocities also ``Td`` (dT/dt),
-    ``Od`` (dOmega/dt) and ``Odd`` (its velocity-product part, qdd = 0).
+    ``(n_steps, 3, 6)`` (6th-order steps); with velocities also ``Td_Od`` ((dT/dt)
+    Od, ``(n_steps, 6)``), ``Od`` (dOmega/dt) and ``Odd`` (its velocity-product
+    part, qdd = 0).
     """
 
     R: Array
@@ -76,7 +78,7 @@ class Steps(NamedTuple):
     T: Array
     xi1: Array | None
     xi2: Array | None
-    Td: Array | None = None
+    Td_Od: Array | None = None
     Od: Array | None = None
     Odd: Array | None = None
     xi: Array | None = None
@@ -110,10 +112,8 @@ def steps(data: LinkageData, q, qd=None, st=None, many: bool = True) -> Steps:
     xid = st.strains(qd, ref=False)
     Od = _omega_rate4(st, xi1, xi2, xid)
     Odd = 2.0 * c * _ad_apply(xid[:, 0], xid[:, 1])
-    (R, p, T), (_, _, Td) = jax.vmap(
-        lambda O, dO: jax.jvp(exp_and_tangent, (O,), (dO,))
-    )(Omega, Od)
-    return Steps(R, p, T, xi1, xi2, Td, Od, Odd)
+    R, p, T = jax.vmap(exp_and_tangent)(Omega)
+    return Steps(R, p, T, xi1, xi2, _tangent_rate(Omega, Od), Od, Odd)
 
 
 def _steps6(st, xi, qd, many: bool = True) -> Steps:
@@ -128,10 +128,19 @@ def _steps6(st, xi, qd, many: bool = True) -> Steps:
         return jax.jvp(lambda y: magnus6(y, st.h), (x,), (xid,))[1]
 
     Od, Odd = jax.jvp(rates, (xi,), (xid,))
-    (R, p, T), (_, _, Td) = jax.vmap(
-        lambda O, dO: jax.jvp(exp_and_tangent, (O,), (dO,))
+    R, p, T = jax.vmap(exp_and_tangent)(Omega)
+    return Steps(R, p, T, None, None, _tangent_rate(Omega, Od), Od, Odd, xi)
+
+
+def _tangent_rate(Omega, Od):
+    """``(dT/dt) Od`` of every step, ``dT/dt`` the derivative of T(Omega) along Od.
+
+    The forward derivative of :func:`tangent_apply` (a few cross products), not the
+    6 x 6 derivative of T read by one product.
+    """
+    return jax.vmap(
+        lambda O, dO: jax.jvp(lambda O_: tangent_apply(O_, dO), (O,), (dO,))[1]
     )(Omega, Od)
-    return Steps(R, p, T, None, None, Td, Od, Odd, xi)
 
 
 def step_jacobians(data: LinkageData, k: Steps, V, st=None) -> Array:
@@ -458,7 +467,7 @@ def chain_terms(
         return ChainTerms(RG, pG, Ginv, relJ)
     Od = _gather(k.Od, lay.idx_rate, 0.0, extra)
     y = jnp.einsum("nsab,nsb->nsa", T, Od)
-    yd = jnp.einsum("nsab,nsb->nsa", _gather(k.Td, lay.idx_rate, 0.0, extra), Od)
+    yd = _gather(k.Td_Od, lay.idx_rate, 0.0, extra)
     yd = yd + jnp.einsum("nsab,nsb->nsa", T, _gather(k.Odd, lay.idx_rate, 0.0, extra))
     rel_eta = jnp.einsum(
         "nsab,nsb->nsa", Ginv, _cumsum0(jnp.einsum("nsab,nsb->nsa", AdG, y))
@@ -785,8 +794,7 @@ def _tree_pass(data: LinkageData, q, V, qd, core_only: bool = False):
         X = J[lay.leaf_row]
         if rates:
             y = jnp.einsum("lab,lb->la", kl.T, kl.Od)
-            yd = jnp.einsum("lab,lb->la", kl.Td, kl.Od)
-            yd = yd + jnp.einsum("lab,lb->la", kl.T, kl.Odd)
+            yd = kl.Td_Od + jnp.einsum("lab,lb->la", kl.T, kl.Odd)
             rel = jnp.concatenate([rel, y[..., None], yd[..., None]], axis=-1)
             X = jnp.concatenate(
                 [X, eta[lay.leaf_row][..., None], etadot[lay.leaf_row][..., None]],

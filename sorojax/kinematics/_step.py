@@ -181,6 +181,36 @@ def exp_and_tangent(Omega):
     return R, p, T
 
 
+def tangent_apply(Omega, x):
+    """``T(Omega) x`` for a twist ``x`` (both ``(6,)``), without forming T.
+
+    T's blocks applied by cross products (W = hat(w), V = hat(v), x = (a, b)):
+    ``Ts a = a + B w x a + C W^2 a`` and ``Q a = v x a / 2 + C (v (w.a) + w (v.a) -
+    2 (w.v) a - (w.v) w x a) + D (w ((w x v).a) - (w x v)(w.a) - 2 |w|^2 v x a +
+    3 (w.v) w x a) - 2 F (w.v) W^2 a``, ``W^2 a = w (w.a) - |w|^2 a``. Its forward
+    derivative along ``dOmega`` is ``(dT/dOmega dOmega) x`` in a few cross
+    products, where the derivative of :func:`exp_and_tangent` forms all 36 entries
+    of ``dT`` to be read by one product.
+    """
+    w, v = Omega[:3], Omega[3:]
+    a, b = x[:3], x[3:]
+    theta2 = jnp.sum(w * w)
+    wv = jnp.sum(w * v)
+    A, B, C, D, F = coefficients(theta2)
+    wa, wb, va, wxv = _crosses([w, w, v, w], [a, b, a, v])
+    w_a = jnp.sum(w * a)
+    W2a = w * w_a - theta2 * a
+    W2b = jnp.cross(w, wb)
+    Qa = (
+        0.5 * va
+        + C * (v * w_a + w * jnp.sum(v * a) - 2.0 * wv * a - wv * wa)
+        + D * (w * jnp.sum(wxv * a) - wxv * w_a - 2.0 * theta2 * va + 3.0 * wv * wa)
+        - 2.0 * F * wv * W2a
+    )
+    top = a + B * wa + C * W2a
+    return jnp.concatenate([top, Qa + b + B * wb + C * W2b])
+
+
 @jax.custom_jvp
 def exp_and_tangent_many(Omega):
     """:func:`exp_and_tangent` of a stack of twists ``(n, 6)``, for many tangents.

@@ -166,8 +166,10 @@ class LeafBasis(eqx.Module):
             term = self.values[s] * self._coordinates(x, s)
             per_row[r] = term if per_row[r] is None else per_row[r] + term
         zero = jnp.zeros((nz, n), self.values.dtype)
-        xi = jnp.stack([zero if t is None else t for t in per_row], axis=1)
-        return xi if xi_ref is None else xi + xi_ref
+        rows = [zero if t is None else t for t in per_row]
+        if xi_ref is not None:  # row by row: one kernel with the stack
+            rows = [t + xi_ref[:, r] for r, t in enumerate(rows)]
+        return jnp.stack(rows, axis=1)
 
     def columns(self, n_dof: int):
         """The bases' columns at each node, ``(n_nodes, 6, n_dof, n_leaves)``.
