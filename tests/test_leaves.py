@@ -24,6 +24,7 @@ import pytest
 from test_contact_kernels import _rod  # the same rod and floor
 
 import sorojax as sj
+from sorojax import lie
 from sorojax.dynamics._contact import _add_rows
 from sorojax.dynamics._eom import mass_and_force
 from sorojax.dynamics._wrench_recursion import force_from_point_rates
@@ -266,8 +267,7 @@ def _obstacles_rod(self_contact: bool, moving: bool = True):
     else:
         pose = np.array(lift(0.4))
         axis = np.array([0.3, -0.4, 70.0]) / np.linalg.norm([0.3, -0.4, 70.0])
-        K = np.cross(np.eye(3), axis)  # hat(axis); then Rodrigues' rotation by 0.7
-        pose[:3, :3] = np.eye(3) + np.sin(0.7) * K + (1 - np.cos(0.7)) * K @ K
+        pose[:3, :3] = np.asarray(lie.exp_so3(jnp.asarray(0.7 * axis)))
         plane = sj.Plane(point=(0.01, 0.02, 0.001), normal=(0.005, 0.002, 1.0),
                          pose=pose)  # fmt: skip
     ball = sj.Sphere(0.02, centre=(0.2, 0.0, 0.03))

@@ -1605,9 +1605,9 @@ class SorojaxSolver:
         dirs = np.empty((B, T, len(mdl.mids), 3))
         pos[:, 0], dirs[:, 0] = np.asarray(p0), np.asarray(d0)
         C = FRAME_CHUNK
+        advance = _advance_long if heap else _advance
         for k in range(1, T, C):
             chunk = np.minimum(np.arange(k, k + C), T - 1)  # pad with the last frame
-            advance = _advance_long if heap else _advance
             ys, p, d, ok, _ = advance(
                 mdl.linkage,
                 mdl.sampler,

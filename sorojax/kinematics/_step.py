@@ -196,11 +196,11 @@ def tangent_apply(Omega, x):
     a, b = x[:3], x[3:]
     theta2 = jnp.sum(w * w)
     wv = jnp.sum(w * v)
-    A, B, C, D, F = coefficients(theta2)
+    _, B, C, D, F = coefficients(theta2)
     wa, wb, va, wxv = _crosses([w, w, v, w], [a, b, a, v])
     w_a = jnp.sum(w * a)
     W2a = w * w_a - theta2 * a
-    W2b = jnp.cross(w, wb)
+    W2b = w * jnp.sum(w * b) - theta2 * b
     Qa = (
         0.5 * va
         + C * (v * w_a + w * jnp.sum(v * a) - 2.0 * wv * a - wv * wa)
