@@ -61,6 +61,7 @@ except ImportError:  # pragma: no cover - layout of a future diffrax
 SOLVERS: dict[str, Callable[[], diffrax.AbstractSolver]] = {
     "tsit5": diffrax.Tsit5,
     "dopri5": diffrax.Dopri5,
+    "bosh3": diffrax.Bosh3,
     "dopri8": diffrax.Dopri8,
     "kvaerno3": diffrax.Kvaerno3,
     "kvaerno4": diffrax.Kvaerno4,
