@@ -28,6 +28,7 @@ fewer flops.
 
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array
@@ -172,9 +173,29 @@ def composite_mass(
         Jst = Jst + jnp.swapaxes(jnp.stack(X)[gl.link], 0, 1)
     # the blocks above the diagonal and half of the diagonal ones; M = U + U^T
     # rows (h, k), columns (g, l); a zero row and column for columns outside groups
-    U = jnp.einsum("hgak,gal->hkgl", Jst, P)
+    # (formed transposed, V = U^T: rows (g, l), columns (h, k), as the product
+    # lays them out; B is symmetric)
+    V = jnp.einsum("hgak,gal->glhk", Jst, P)
     eye = jnp.eye(n_g, dtype=dtype)[:, None, :, None]
-    U = (U + eye * (0.5 * B)[:, :, None, :]).reshape(n_g * K, n_g * K)
+    V = (V + eye * (0.5 * B)[:, :, None, :]).reshape(n_g * K, n_g * K)
     src = np.array(gb.src)
-    U = jnp.pad(U, ((0, 1), (0, 1)))[src][:, src]
-    return lock_padding(U + U.T, data.locked)
+    if src.max() == n_g * K:
+        V = jnp.pad(V, ((0, 1), (0, 1)))
+    V = _take(_take(V, src, 0), src, 1)
+    return lock_padding(V + V.T, data.locked)
+
+
+def _take(x, idx: np.ndarray, axis: int):
+    """``x`` at static indices ``idx`` along ``axis``: slices of their runs.
+
+    The coordinates' rows and columns are a few runs of consecutive group columns
+    (a joint's column, then every division's), so copies of slices replace a gather
+    (which XLA's CPU backend runs element by element); past eight runs, the gather.
+    """
+    runs = np.split(idx, np.flatnonzero(np.diff(idx) != 1) + 1)
+    if len(runs) > 8:
+        return jnp.take(x, idx, axis=axis)
+    parts = [
+        jax.lax.slice_in_dim(x, int(r[0]), int(r[-1]) + 1, axis=axis) for r in runs
+    ]
+    return parts[0] if len(parts) == 1 else jnp.concatenate(parts, axis=axis)
