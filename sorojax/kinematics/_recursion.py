@@ -112,24 +112,8 @@ def steps(data: LinkageData, q, qd=None, st=None, many: bool = True) -> Steps:
     xid = st.strains(qd, ref=False)
     Od = _omega_rate4(st, xi1, xi2, xid)
     Odd = 2.0 * c * _ad_apply(xid[:, 0], xid[:, 1])
-    R, p, T = _exp_and_tangent_rows(Omega)
+    R, p, T = jax.vmap(exp_and_tangent)(Omega)
     return Steps(R, p, T, xi1, xi2, _tangent_rate(Omega, Od), Od, Odd)
-
-
-def _exp_and_tangent_rows(Omega):
-    """:func:`exp_and_tangent` of ``(n, 6)`` twists, computed component by component.
-
-    The leaves' kernel (:func:`~sorojax.kinematics._leaves._exp_and_tangent`: each
-    entry a row over the steps, vectorised along them) and its blocks laid out as
-    ``(n, 3, 3)``, ``(n, 3)``, ``(n, 6, 6)``; a vmap of the 6 x 6 kernel is one loop
-    over the steps' 36 entries with their terms recomputed for each.
-    """
-    R, p, Ts, Q = _leaves._exp_and_tangent(Omega.T)
-    Z = jnp.zeros_like(Ts)
-    T = jnp.concatenate(
-        [jnp.concatenate([Ts, Z], axis=1), jnp.concatenate([Q, Ts], axis=1)]
-    )
-    return jnp.transpose(R, (2, 0, 1)), p.T, jnp.transpose(T, (2, 0, 1))
 
 
 def _steps6(st, xi, qd, many: bool = True) -> Steps:
