@@ -23,7 +23,7 @@ import pytest
 
 import sorojax as sj
 from sorojax import scenes
-from sorojax.dynamics._composite import _take
+from sorojax.dynamics._composite import _take_runs
 from sorojax.dynamics._eom import mass_and_force, spd_solve
 from sorojax.dynamics._mass import _mass_from_J
 from sorojax.kinematics._recursion import chain_layout, point_rates, rows_of
@@ -186,8 +186,10 @@ def test_forces_and_derivatives_equal_single_group_path(case):
     ],
 )
 def test_take_by_runs_equals_a_gather(idx):
-    """``_take`` (copies of the runs of consecutive indices, a gather past eight
+    """``_take_runs`` (copies of the runs of consecutive indices, a gather past eight
     runs) picks what ``jnp.take`` picks, along either axis: exact."""
     x = jnp.asarray(np.random.default_rng(5).normal(size=(25, 25)))
     for axis in (0, 1):
-        np.testing.assert_array_equal(_take(x, idx, axis), jnp.take(x, idx, axis=axis))
+        np.testing.assert_array_equal(
+            _take_runs(x, idx, axis), jnp.take(x, idx, axis=axis)
+        )

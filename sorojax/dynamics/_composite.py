@@ -181,11 +181,11 @@ def composite_mass(
     src = np.array(gb.src)
     if src.max() == n_g * K:
         V = jnp.pad(V, ((0, 1), (0, 1)))
-    V = _take(_take(V, src, 0), src, 1)
+    V = _take_runs(_take_runs(V, src, 0), src, 1)
     return lock_padding(V + V.T, data.locked)
 
 
-def _take(x, idx: np.ndarray, axis: int):
+def _take_runs(x, idx: np.ndarray, axis: int):
     """``x`` at static indices ``idx`` along ``axis``: slices of their runs.
 
     The coordinates' rows and columns are a few runs of consecutive group columns
