@@ -528,10 +528,12 @@ def _first_true(mask, k: int):
     Indices past the count are 0: ``jnp.nonzero(mask, size=k, fill_value=0)``
     without its scatter. The m-th True entry is where the running count first
     reaches m, a binary search of the ``k`` counts in the prefix sum (XLA's CPU
-    backend runs a scatter as a loop over its rows).
+    backend runs a scatter as a loop over its rows). The search is unrolled: one
+    kernel per halving, where a loop ran each halving as several kernels.
     """
     c = jnp.cumsum(mask.astype(int))
-    idx = jnp.searchsorted(c, jnp.arange(1, k + 1, dtype=c.dtype), method="scan")
+    m = jnp.arange(1, k + 1, dtype=c.dtype)
+    idx = jnp.searchsorted(c, m, method="scan_unrolled")
     return jnp.where(idx < mask.shape[0], idx, 0), c[-1]
 
 
@@ -567,9 +569,12 @@ def _candidates(contact: Contact, g, entry):
     # squared distances, one coordinate row at a time: elementwise over the pairs
     # (XLA's CPU backend forms a norm over the short last axis of the (pairs, 3)
     # differences in a kernel many times slower)
-    xA, xB = cA.T, cB.T
-    d2 = sum((xA[i][ia] - xB[i][ib]) ** 2 for i in range(3))
-    near = ~(d2 >= (RA[ia] + RB[ib] + reach) ** 2)  # NaN: cannot be ruled out
+    # (the spheres stored first: read by every pair, their norms would be computed
+    # again for each)
+    A = _stored(jnp.concatenate([cA.T, RA[None]]), cA[0, 0])
+    B = A if sa is sb else _stored(jnp.concatenate([cB.T, RB[None]]), cB[0, 0])
+    d2 = sum((A[i][ia] - B[i][ib]) ** 2 for i in range(3))
+    near = ~(d2 >= (A[3][ia] + B[3][ib] + reach) ** 2)  # NaN: cannot be ruled out
     idx, count = _first_true(near, k)
     valid = jnp.arange(k) < count
     return jnp.asarray(ia)[idx], jnp.asarray(ib)[idx], valid, count > k
