@@ -219,12 +219,17 @@ def _rotate_back(R, v):
     )
 
 
-def _law_forces(law, d, n, v_rel, weight, friction: bool, axis=None, comp=-1):
+def _law_forces(
+    law, d, n, v_rel, weight, friction: bool, axis=None, comp=-1, keep=False
+):
     """Force on the robot (world) from penetration, normal and relative velocity.
 
     ``axis``: (n, 3) body axes of anisotropic friction (``law.forward_friction``).
     ``comp``: the vectors' component axis: -1 for ``(n, 3)`` stacks, 0 for ``(3,
-    n)`` rows (:func:`_obstacle_rows`).
+    n)`` rows (:func:`_obstacle_rows`). ``keep`` (isotropic friction): the
+    weighted normal force and friction's viscous coefficient are stored
+    (:func:`_stored`) and the force formed from them, rather than the law computed
+    again for each of the force's components.
     """
 
     def dot(a, b):
@@ -237,6 +242,14 @@ def _law_forces(law, d, n, v_rel, weight, friction: bool, axis=None, comp=-1):
     vt = v_rel - times(vn, n)
     f_el = law.normal_force(d)
     fn = f_el - law.damping * law.ramp(d) * vn
+    if keep:
+        cf = jnp.zeros_like(fn)
+        if friction:
+            speed2 = dot(vt, vt)
+            speed = jnp.sqrt(speed2 + law.stick_velocity**2)
+            cf = law.friction_coefficient(jnp.sqrt(speed2 + 1e-30)) * f_el / speed
+        S = _stored(jnp.stack([weight * fn, weight * cf]), jnp.ravel(d)[0])
+        return times(S[0], n) - times(S[1], vt), S[0], vt
     f = times(fn, n)
     if friction:
         speed2 = dot(vt, vt)
@@ -388,37 +401,57 @@ def _obstacle_rows(contact: Contact, samples: Samples, frames, t, chain):
 
 
 def segment_closest(p0, p1, q0, q1):
-    """Parameters (s, u) in [0, 1] of the closest points of segments p0p1 and q0q1."""
-    return _segment_closest(p0, p1, q0, q1)[:2]
+    """Parameters (s, u) in [0, 1] of the closest points of segments p0p1 and q0q1.
+
+    ``p0, p1, q0, q1``: ``(..., 3)`` points.
+    """
+    rows = ([x[..., i] for i in range(3)] for x in (p0, p1, q0, q1))
+    return _segment_closest(*rows)[:2]
 
 
 def _segment_closest(p0, p1, q0, q1):
     """``(s, u, s_line, u_line, parallel)``: closest points of segments and lines.
 
-    ``s_line``, ``u_line`` are the lines' (unclamped) parameters; the segments'
-    own when the segments are parallel.
+    The points' components are lists of three rows (any shape, one entry per
+    segment pair). ``s_line``, ``u_line`` are the lines' (unclamped) parameters;
+    the segments' own when the segments are parallel. The divisions by ``a``,
+    ``e`` and the determinant are products by their reciprocals, stored (each is
+    read by several rows, a kernel of its own otherwise).
     """
-    d1, d2, r = p1 - p0, q1 - q0, p0 - q0
-    a, e = jnp.dot(d1, d1), jnp.dot(d2, d2)
-    b, c, f = jnp.dot(d1, d2), jnp.dot(d1, r), jnp.dot(d2, r)
-    safe_a = jnp.where(a > 0, a, 1.0)
-    safe_e = jnp.where(e > 0, e, 1.0)
+    d1 = [y - x for x, y in zip(p0, p1, strict=True)]
+    d2 = [y - x for x, y in zip(q0, q1, strict=True)]
+    r = [x - y for x, y in zip(p0, q0, strict=True)]
+
+    def dot(x, y):
+        return x[0] * y[0] + x[1] * y[1] + x[2] * y[2]
+
+    a, e, b, c, f = dot(d1, d1), dot(d2, d2), dot(d1, d2), dot(d1, r), dot(d2, r)
     den = a * e - b * b
     parallel = den <= 1e-12 * a * e
-    s_line = jnp.where(parallel, 0.0, (b * f - c * e) / jnp.where(parallel, 1.0, den))
-    u_line = (b * s_line + f) / safe_e
+    inv = _stored(
+        1.0
+        / jnp.stack([
+            jnp.where(a > 0, a, 1.0),
+            jnp.where(e > 0, e, 1.0),
+            jnp.where(parallel, 1.0, den),
+        ]),
+        jnp.ravel(den)[0],
+    )  # fmt: skip
+    inv_a, inv_e, inv_den = inv[0], inv[1], inv[2]
+    s_line = jnp.where(parallel, 0.0, (b * f - c * e) * inv_den)
+    u_line = (b * s_line + f) * inv_e
     s = jnp.where(a > 0, jnp.clip(s_line, 0.0, 1.0), 0.0)
-    u = (b * s + f) / safe_e
+    u = (b * s + f) * inv_e
     s = jnp.where(
         u < 0,
-        jnp.clip(-c / safe_a, 0.0, 1.0),
-        jnp.where(u > 1, jnp.clip((b - c) / safe_a, 0.0, 1.0), s),
+        jnp.clip(-c * inv_a, 0.0, 1.0),
+        jnp.where(u > 1, jnp.clip((b - c) * inv_a, 0.0, 1.0), s),
     )
     u = jnp.clip(u, 0.0, 1.0)
     s = jnp.where(a > 0, s, 0.0)
     u = jnp.where(e > 0, u, 0.0)
     s_line = jnp.where(parallel, s, s_line)
-    u_line = jnp.where(parallel, (b * s + f) / safe_e, u_line)
+    u_line = jnp.where(parallel, (b * s + f) * inv_e, u_line)
     return s, u, s_line, u_line, parallel
 
 
@@ -538,7 +571,10 @@ def _first_true(mask, k: int):
 
 
 def _candidates(contact: Contact, g, entry):
-    """``(ia, ib, valid, overflow)``: the segment pairs the narrow phase examines.
+    """``(pairs, valid, overflow)``: the segment pairs the narrow phase examines.
+
+    ``pairs``: the rows ``(ia, ib, a0, a1, b0, b1)``, each pair's segments on A and
+    B and their ends' samples (from one static table, in one gather).
 
     All of them (static indices, ``valid`` None) when the capacity holds every
     pair; else the broad phase: each segment's bounding sphere (centre at its
@@ -552,8 +588,9 @@ def _candidates(contact: Contact, g, entry):
     """
     sa, ga, sb, gb, ia, ib = entry
     k = _capacity(contact, entry)
+    table = np.stack([ia, ib, ga.start[ia], ga.end[ia], gb.start[ib], gb.end[ib]])
     if k >= len(ia):
-        return ia, ib, None, jnp.zeros((), bool)
+        return tuple(table), None, jnp.zeros((), bool)
     gs = jax.lax.stop_gradient(g)
 
     def spheres(smp, seg):
@@ -577,7 +614,7 @@ def _candidates(contact: Contact, g, entry):
     near = ~(d2 >= (A[3][ia] + B[3][ib] + reach) ** 2)  # NaN: cannot be ruled out
     idx, count = _first_true(near, k)
     valid = jnp.arange(k) < count
-    return jnp.asarray(ia)[idx], jnp.asarray(ib)[idx], valid, count > k
+    return tuple(jnp.asarray(table)[:, idx]), valid, count > k
 
 
 def _segment_velocity(x, w, v, i0, i1, c, lam):
@@ -592,7 +629,11 @@ def _segment_velocity(x, w, v, i0, i1, c, lam):
 
 
 class _PairGeometry(NamedTuple):
-    """One rod pair's segment pairs: closest points, normals, gaps, velocities."""
+    """One rod pair's segment pairs: closest points, normals, gaps, velocities.
+
+    Vectors are rows ``(3, k)`` over the segment pairs (:func:`_pair_rows`) or
+    stacks ``(k, 3)`` (:func:`_pair_geometry`).
+    """
 
     a0: np.ndarray  # sample indices of the segments' ends on rod A
     a1: np.ndarray
@@ -606,46 +647,71 @@ class _PairGeometry(NamedTuple):
     cA: Array  # contact points on A's and B's surfaces
     cB: Array
     v_rel: Array  # A's surface velocity relative to B's at the contact
+    ends: tuple  # rows: the four ends' sample centres (A's two, then B's)
 
 
-def _pair_geometry(g, eta, sa, ga, sb, gb, ia, ib, valid=None) -> _PairGeometry:
-    """The segment pairs ``(ia, ib)`` of two rods (or one, for self-contact).
+def _sample_rows(g, eta, smp: Samples):
+    """A rod's sample centres, spins, velocities (world), radii: rows ``(10, n)``.
 
-    ``valid``: False at the broad phase's empty rows (no share, a gap of twice the
-    radii: no force).
+    Stored (:func:`_stored`): every segment pair reads them.
     """
-    _, _, xa, wa, va = _world_points(g, eta, sa)
-    _, _, xb, wb, vb = _world_points(g, eta, sb)
-    a0, a1 = _take(ga.start, ia), _take(ga.end, ia)
-    b0, b1 = _take(gb.start, ib), _take(gb.end, ib)
-    s, u, s_line, u_line, parallel = jax.vmap(_segment_closest)(
-        xa[a0], xa[a1], xb[b0], xb[b1]
-    )
-    share = _vertex_share(s_line, ia == 0, ia == len(ga.start) - 1) * _vertex_share(
-        u_line, ib == 0, ib == len(gb.start) - 1
-    )
+    _, _, x, w, v = _world_points(g, eta, smp)
+    rows = jnp.concatenate([x.T, w.T, v.T, smp.radius[None].astype(x.dtype)])
+    return _stored(rows, rows[0, 0])
+
+
+def _pair_rows(g, eta, sa, ga, sb, gb, pairs, valid=None) -> _PairGeometry:
+    """Segment pairs of two rods (or one, for self-contact), as rows.
+
+    ``pairs``: :func:`_candidates`' rows.
+
+    Every quantity is a row over the segment pairs (structure of arrays: each kernel
+    a loop along them, not over ``(k, 3)`` stacks whose minor axis is three long).
+    ``valid``: False at the broad phase's empty rows (no share, a gap of twice the
+    radii: no force). Rod samples lie on the centre line (no offset).
+    """
+    A = _sample_rows(g, eta, sa)
+    B = A if sa is sb else _sample_rows(g, eta, sb)
+    ia, ib, a0, a1, b0, b1 = pairs
+    XA0, XA1, XB0, XB1 = A[:, a0], A[:, a1], B[:, b0], B[:, b1]
+    pa0, pa1, pb0, pb1 = (list(X[:3]) for X in (XA0, XA1, XB0, XB1))
+    s, u, s_line, u_line, parallel = _segment_closest(pa0, pa1, pb0, pb1)
+    share_b = _vertex_share(u_line, ib == 0, ib == len(gb.start) - 1)
+    share = _vertex_share(s_line, ia == 0, ia == len(ga.start) - 1) * share_b
     # parallel segments take their start vertex: every vertex once
-    share = jnp.where(
-        parallel, _vertex_share(u_line, ib == 0, ib == len(gb.start) - 1), share
-    )
-    PA = xa[a0] + s[:, None] * (xa[a1] - xa[a0])
-    PB = xb[b0] + u[:, None] * (xb[b1] - xb[b0])
-    rA = (1 - s) * sa.radius[a0] + s * sa.radius[a1]
-    rB = (1 - u) * sb.radius[b0] + u * sb.radius[b1]
-    dvec = PA - PB
-    dist = _safe_norm(dvec)
-    n = dvec / jnp.maximum(dist, 1e-12)[:, None]
+    share = jnp.where(parallel, share_b, share)
+    PA = [x0 + s * (x1 - x0) for x0, x1 in zip(pa0, pa1, strict=True)]
+    PB = [x0 + u * (x1 - x0) for x0, x1 in zip(pb0, pb1, strict=True)]
+    rA = (1 - s) * XA0[9] + s * XA1[9]
+    rB = (1 - u) * XB0[9] + u * XB1[9]
+    dvec = jnp.stack([x - y for x, y in zip(PA, PB, strict=True)])
+    dist = _safe_norm(dvec, axis=0)
+    n = dvec / jnp.maximum(dist, 1e-12)[None]
     d = rA + rB - dist
     if valid is not None:
         share = jnp.where(valid, share, 0.0)
         d = jnp.where(valid, d, -(rA + rB))
-    cA = PA - rA[:, None] * n
-    cB = PB + rB[:, None] * n
+    cA = jnp.stack(PA) - rA[None] * n
+    cB = jnp.stack(PB) + rB[None] * n
 
-    v_rel = _segment_velocity(xa, wa, va, a0, a1, cA, s) - _segment_velocity(
-        xb, wb, vb, b0, b1, cB, u
-    )
-    return _PairGeometry(a0, a1, b0, b1, s, u, share, n, d, cA, cB, v_rel)
+    def velocity(X0, X1, c, lam):  # of points c carried by segments (as split)
+        v0 = _add(list(X0[6:9]), _cross(list(X0[3:6]), list(c - X0[:3])))
+        v1 = _add(list(X1[6:9]), _cross(list(X1[3:6]), list(c - X1[:3])))
+        return jnp.stack([(1 - lam) * x + lam * y for x, y in zip(v0, v1, strict=True)])
+
+    v_rel = velocity(XA0, XA1, cA, s) - velocity(XB0, XB1, cB, u)
+    ends = (XA0[:3], XA1[:3], XB0[:3], XB1[:3])
+    return _PairGeometry(a0, a1, b0, b1, s, u, share, n, d, cA, cB, v_rel, ends)
+
+
+def _pair_geometry(g, eta, sa, ga, sb, gb, pairs, valid=None) -> _PairGeometry:
+    """:func:`_pair_rows` with its vectors as ``(k, 3)`` stacks."""
+    k = _pair_rows(g, eta, sa, ga, sb, gb, pairs, valid)
+    return k._replace(n=k.n.T, cA=k.cA.T, cB=k.cB.T, v_rel=k.v_rel.T, ends=())
+
+
+def _add(a, b):
+    return [x + y for x, y in zip(a, b, strict=True)]
 
 
 def _stored(x, key):
@@ -662,40 +728,67 @@ def _stored(x, key):
 
 
 def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
-    """Rod-rod contacts: (loads, report rows, overflow) (loads: see :func:`_contact`).
+    """Rod-rod contacts: (wrenches, report rows, overflow).
 
-    Each rod pair's narrow phase works on its broad phase's candidates
-    (:func:`_candidates`).
+    ``wrenches``: ``(points, W)``, body wrenches ``W`` at the rods' samples'
+    points (static, distinct within each entry). Each rod pair's narrow phase
+    works on its broad phase's candidates (:func:`_candidates`), on rows
+    (:func:`_pair_rows`); each pair's force is split to its segments' four ends
+    (weighted by the closest points' parameters), summed per sample in the world
+    with its moment about the sample, and turned into the sample's body wrench
+    once.
     """
     law = contact.law
-    loads, rows = [], []
+    wrenches, rows = [], []
     overflow = jnp.zeros((), bool)
     for entry in pairs:
         sa, ga, sb, gb, _, _ = entry
-        ia, ib, valid, over = _candidates(contact, g, entry)
+        pick, valid, over = _candidates(contact, g, entry)
         overflow = overflow | over
-        k = _pair_geometry(g, eta, sa, ga, sb, gb, ia, ib, valid)
-        a0, a1, b0, b1, s, u = k.a0, k.a1, k.b0, k.b1, k.s, k.u
-        share, n, d, cA, cB, v_rel = k.share, k.n, k.d, k.cA, k.cB, k.v_rel
+        k = _pair_rows(g, eta, sa, ga, sb, gb, pick, valid)
         f, fn, vt = _law_forces(
             law,
-            d,
-            n,
-            v_rel,
-            share,
+            k.d,
+            k.n,
+            k.v_rel,
+            k.share,
             friction and contact.friction_in_rod_pairs,
+            comp=0,
+            keep=True,
         )
-        f = _stored(f, jnp.sum(d[:1]))
-        for idx, c_, lam, pts in (
-            (a0, cA, 1 - s, sa.point),
-            (a1, cA, s, sa.point),
-            (b0, cB, -(1 - u), sb.point),
-            (b1, cB, -u, sb.point),
+        f = _stored(f, jnp.sum(k.d[:1]))
+        ends = []  # (sample, world moment about it and force): rows (6, k)
+        for idx, c_, lam, x in zip(
+            (k.a0, k.a1, k.b0, k.b1),
+            (k.cA, k.cA, k.cB, k.cB),
+            (1 - k.s, k.s, -(1 - k.u), -k.u),
+            k.ends,
+            strict=True,
         ):
-            loads.append((_take(pts, idx), c_, lam[:, None] * f))
-        energy = jnp.sum(share * law.potential(d))
-        rows.append((cA, n, d, fn, f, vt, energy, np.full(d.shape[0], sa.link[0])))
-    return loads, rows, overflow
+            F = lam[None] * f
+            ends.append((idx, jnp.stack(_cross(list(c_ - x), list(F)) + list(F))))
+        if sa is sb:
+            parts = [(sa, ends)]
+        else:
+            parts = [(sa, ends[:2]), (sb, ends[2:])]
+        for smp, e in parts:
+            idx = _join_indices([i for i, _ in e])
+            val = jnp.concatenate([v for _, v in e], axis=1)
+            n_s = len(smp.point)
+            sums = jnp.zeros((n_s, 6), val.dtype).at[idx].add(val.T)
+            R = g[smp.point, :3, :3]
+            wrenches.append(
+                (smp.point, jnp.concatenate(
+                    [_rotate_back(R, sums[:, :3]), _rotate_back(R, sums[:, 3:])],
+                    axis=-1,
+                ))
+            )  # fmt: skip
+        energy = jnp.sum(k.share * law.potential(k.d))
+        rows.append((
+            k.cA.T, k.n.T, k.d, fn, f.T, vt.T, energy,
+            np.full(k.d.shape[0], sa.link[0]),
+        ))  # fmt: skip
+    return wrenches, rows, overflow
 
 
 def _bore_radii(linkage: Linkage, tube: int) -> Array:
@@ -928,9 +1021,9 @@ def _contact(linkage: Linkage, t, g, eta, samples: Samples | None = None):
             rows.append(r)
             labels.append((samples.link, np.full(len(samples.link), k)))
     pairs = _pair_list(linkage)
+    pair_wrenches = []
     if pairs:
-        lp, rp, overflow = _pair_terms(contact, pairs, g, eta, friction)
-        loads += lp
+        pair_wrenches, rp, overflow = _pair_terms(contact, pairs, g, eta, friction)
         for r in rp:
             rows.append(r[:7])
             labels.append((np.asarray(r[7]), np.full(len(r[7]), -1)))
@@ -947,6 +1040,8 @@ def _contact(linkage: Linkage, t, g, eta, samples: Samples | None = None):
         f = jnp.concatenate([f for _, _, f in loads])
         R, p = g[points, :3, :3], g[points, :3, 3]
         W = _add_rows(W, points, _point_wrenches(R, p, x, f))
+    for points, Wp in pair_wrenches:
+        W = _add_rows(W, points, Wp)
     if pairs:
         W = jnp.where(overflow, jnp.nan, W)
     return W, rows, labels, overflow
@@ -1121,8 +1216,8 @@ def contact_tangent(linkage: Linkage, t, g, J, eta) -> tuple[Array, Array]:
             carriers.append([(samples.point, None, x_c)])
     for entry in _pair_list(linkage):
         sa, ga, sb, gb, _, _ = entry
-        ia, ib, valid, _ = _candidates(contact, g, entry)
-        k = _pair_geometry(g, eta, sa, ga, sb, gb, ia, ib, valid)
+        pick, valid, _ = _candidates(contact, g, entry)
+        k = _pair_geometry(g, eta, sa, ga, sb, gb, pick, valid)
         friction = contact.friction_in_rod_pairs
         slopes.append(
             (k.n, *_tangent_slopes(law, k.share, k.d, k.n, k.v_rel, friction))
