@@ -561,12 +561,10 @@ def _first_true(mask, k: int):
     Indices past the count are 0: ``jnp.nonzero(mask, size=k, fill_value=0)``
     without its scatter. The m-th True entry is where the running count first
     reaches m, a binary search of the ``k`` counts in the prefix sum (XLA's CPU
-    backend runs a scatter as a loop over its rows). The search is unrolled: one
-    kernel per halving, where a loop ran each halving as several kernels.
+    backend runs a scatter as a loop over its rows).
     """
     c = jnp.cumsum(mask.astype(int))
-    m = jnp.arange(1, k + 1, dtype=c.dtype)
-    idx = jnp.searchsorted(c, m, method="scan_unrolled")
+    idx = jnp.searchsorted(c, jnp.arange(1, k + 1, dtype=c.dtype))
     return jnp.where(idx < mask.shape[0], idx, 0), c[-1]
 
 
@@ -757,7 +755,7 @@ def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
             keep=True,
         )
         f = _stored(f, jnp.sum(k.d[:1]))
-        ends = []  # (sample, world moment about it and force): rows (6, k)
+        ends = []  # (sample, world moment about it and force): (k, 6)
         for idx, c_, lam, x in zip(
             (k.a0, k.a1, k.b0, k.b1),
             (k.cA, k.cA, k.cB, k.cB),
@@ -766,16 +764,17 @@ def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
             strict=True,
         ):
             F = lam[None] * f
-            ends.append((idx, jnp.stack(_cross(list(c_ - x), list(F)) + list(F))))
+            mf = _cross(list(c_ - x), list(F)) + list(F)
+            ends.append((idx, jnp.stack(mf, axis=1)))  # not a transpose of rows
         if sa is sb:
             parts = [(sa, ends)]
         else:
             parts = [(sa, ends[:2]), (sb, ends[2:])]
         for smp, e in parts:
             idx = _join_indices([i for i, _ in e])
-            val = jnp.concatenate([v for _, v in e], axis=1)
+            val = jnp.concatenate([v for _, v in e])
             n_s = len(smp.point)
-            sums = jnp.zeros((n_s, 6), val.dtype).at[idx].add(val.T)
+            sums = jnp.zeros((n_s, 6), val.dtype).at[idx].add(val)
             R = g[smp.point, :3, :3]
             wrenches.append(
                 (smp.point, jnp.concatenate(
