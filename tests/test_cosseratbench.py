@@ -7,6 +7,8 @@ pre-stretched initial fit) is marked ``slow`` (its compiles take ~10 s and more)
 ``pytest tests/test_cosseratbench.py -m slow``.
 """
 
+import os
+
 import numpy as np
 import pytest
 
@@ -39,6 +41,36 @@ def test_solver_contract():
     }
     assert "sorojax" in registry.names(registry.SOLVERS), "entry point not installed"
     assert SorojaxSolver(time_step_scale=2.0).time_step_scale == 2.0
+
+
+def test_solver_sets_one_runtime_thread_before_jax_starts():
+    """A solver made before JAX's backend starts sets NPROC = XLA_THREADS (1).
+
+    In a fresh interpreter (this process's backend has started): set when unset;
+    not once the backend runs (XLA has read it); a user's NPROC kept.
+    """
+    import subprocess
+    import sys
+
+    code = (
+        "import os\n"
+        "os.environ.pop('NPROC', None)\n"
+        "from sorojax.contrib.cosseratbench import SorojaxSolver, _runtime_threads\n"
+        "SorojaxSolver()\n"
+        "print(os.environ.get('NPROC'))\n"
+        "import jax.numpy as jnp\n"
+        "jnp.zeros(1).block_until_ready()\n"
+        "del os.environ['NPROC']\n"
+        "print(_runtime_threads(1), os.environ.get('NPROC'))\n"
+        "os.environ['NPROC'] = '4'\n"
+        "print(_runtime_threads(1), os.environ.get('NPROC'))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "NPROC"}
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split("\n")[:3] == ["1", "False None", "False 4"], out.stdout
 
 
 def test_cantilever_tip_deflection():

@@ -88,6 +88,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import os
 
 import equinox as eqx
 import jax
@@ -107,6 +108,16 @@ import sorojax as sj
 from sorojax.model._layout import ROD
 
 MODE_NAMES = ("torsion", "bend_y", "bend_z", "stretch", "shear_y", "shear_z")
+
+XLA_THREADS = 1
+"""Threads of XLA's CPU runtime in a benchmark's process (``NPROC``, which XLA reads
+when JAX starts its CPU client; :meth:`SorojaxSolver.__init__` sets it where unset
+and JAX's backend has not started). The adapter's programs run one at a time and
+their operations are microseconds each: handing independent ones to a second
+thread cost more than it saved (2-core CPU, this code, one run each: the pile 25.0
+against 30.5 s, the capstan 13.4 against 14.6 s; the pile's evaluation in a compiled
+loop 398-404 against 427-473 us). The benchmark runs its own solvers' numerical work
+on one thread in its worker processes, too (``OMP_NUM_THREADS`` and the like)."""
 
 EFFECT_TOL = 5e-4
 """A strain mode is modelled when its estimated relative effect reaches this."""
@@ -1313,6 +1324,20 @@ _advance = sj.jit(_advance_chunk, tiered=False)
 _advance_long = sj.jit(_advance_chunk, tiered=False, long_run=True)
 
 
+def _runtime_threads(threads: int) -> bool:
+    """``NPROC = threads`` for JAX's CPU client, unless set or the backend is running.
+
+    Whether it was set (XLA reads it once, when JAX starts its backend: a process
+    that has run JAX already keeps its pool; a user's ``NPROC`` is kept).
+    """
+    from jax._src import xla_bridge
+
+    if "NPROC" in os.environ or xla_bridge.backends_are_initialized():
+        return False
+    os.environ["NPROC"] = str(threads)
+    return True
+
+
 # ------------------------------------------------------------------- the adapter
 class SorojaxSolver:
     """cosseratbench solver adapter for sorojax (GVS Cosserat rods in JAX).
@@ -1327,6 +1352,9 @@ class SorojaxSolver:
             the adaptive step control is scaled by ``time_step_scale**p``, ``p`` the
             order of its local error, and constant steps by ``time_step_scale``;
             statics has no step and ignores it.
+
+    Constructing one before JAX's backend starts sets XLA's CPU runtime to
+    :data:`XLA_THREADS` thread (``NPROC``) for the process, unless ``NPROC`` is set.
     """
 
     name = "sorojax"
@@ -1340,6 +1368,7 @@ class SorojaxSolver:
                 "(1 = the adapter's own choice)."
             )
         self.time_step_scale = float(time_step_scale)
+        _runtime_threads(XLA_THREADS)
         if not contact:
             self.capabilities = frozenset({Capability.STRETCH, Capability.SHEAR})
 
