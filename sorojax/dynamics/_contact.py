@@ -716,11 +716,12 @@ def _stored(x, key):
     """``x``, computed once and stored (a conditional whose branches both return it).
 
     XLA's CPU fusion copies elementwise producers into every kernel that reads
-    them: a rod pair's force, split to its two segments' four ends, had its law
-    recomputed for each end and component (the pile's evaluation 478-508 us
-    stored against 496-550 us). A conditional's operands are stored; its
-    predicate (whether ``key``, a value known at run time only, is NaN) picks
-    between ``x`` and ``x + 0``, equal values.
+    them: the segments' bounding spheres were computed again for each of seven
+    thousand pairs, the rod pairs' law for each component of their force (the
+    pile's evaluation on one thread 400 us with both stored, ~420 us with the
+    law's terms computed in each reader). A conditional's operands are stored; its
+    predicate (whether ``key``, a value known at run time only, is NaN; a constant
+    one would be folded away) picks between ``x`` and ``x + 0``, equal values.
     """
     return jax.lax.cond(jnp.isnan(key), lambda y: y, lambda y: y + 0.0, x)
 
@@ -754,7 +755,6 @@ def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
             comp=0,
             keep=True,
         )
-        f = _stored(f, jnp.sum(k.d[:1]))
         ends = []  # (sample, world moment about it and force): (k, 6)
         for idx, c_, lam, x in zip(
             (k.a0, k.a1, k.b0, k.b1),
@@ -1002,7 +1002,9 @@ def _contact(linkage: Linkage, t, g, eta, samples: Samples | None = None):
 
     Each kind of contact gives its loads, ``(points, x, f)``: forces ``f`` (world)
     at world points ``x`` carried by significant points ``points``; they become
-    body wrenches at those points in one batch. Where the broad phase overflowed
+    body wrenches at those points in one batch. Rod pairs and self-contact give
+    body wrenches at their samples' points (:func:`_pair_terms`). Where the broad
+    phase overflowed
     the wrenches are NaN: a solver stops there (the report says why) rather than
     going on without some contacts.
     """
