@@ -248,7 +248,7 @@ def _law_forces(
             speed2 = dot(vt, vt)
             speed = jnp.sqrt(speed2 + law.stick_velocity**2)
             cf = law.friction_coefficient(jnp.sqrt(speed2 + 1e-30)) * f_el / speed
-        S = _stored(jnp.stack([weight * fn, weight * cf]), jnp.ravel(d)[0])
+        S = _stored(jnp.stack([weight * fn, weight * cf]), d)
         return times(S[0], n) - times(S[1], vt), S[0], vt
     f = times(fn, n)
     if friction:
@@ -435,7 +435,7 @@ def _segment_closest(p0, p1, q0, q1):
             jnp.where(e > 0, e, 1.0),
             jnp.where(parallel, 1.0, den),
         ]),
-        jnp.ravel(den)[0],
+        den,
     )  # fmt: skip
     inv_a, inv_e, inv_den = inv[0], inv[1], inv[2]
     s_line = jnp.where(parallel, 0.0, (b * f - c * e) * inv_den)
@@ -606,8 +606,8 @@ def _candidates(contact: Contact, g, entry):
     # differences in a kernel many times slower)
     # (the spheres stored first: read by every pair, their norms would be computed
     # again for each)
-    A = _stored(jnp.concatenate([cA.T, RA[None]]), cA[0, 0])
-    B = A if sa is sb else _stored(jnp.concatenate([cB.T, RB[None]]), cB[0, 0])
+    A = _stored(jnp.concatenate([cA.T, RA[None]]), cA)
+    B = A if sa is sb else _stored(jnp.concatenate([cB.T, RB[None]]), cB)
     d2 = sum((A[i][ia] - B[i][ib]) ** 2 for i in range(3))
     near = ~(d2 >= (A[3][ia] + B[3][ib] + reach) ** 2)  # NaN: cannot be ruled out
     idx, count = _first_true(near, k)
@@ -655,7 +655,7 @@ def _sample_rows(g, eta, smp: Samples):
     """
     _, _, x, w, v = _world_points(g, eta, smp)
     rows = jnp.concatenate([x.T, w.T, v.T, smp.radius[None].astype(x.dtype)])
-    return _stored(rows, rows[0, 0])
+    return _stored(rows, rows)
 
 
 def _pair_rows(g, eta, sa, ga, sb, gb, pairs, valid=None) -> _PairGeometry:
@@ -722,8 +722,10 @@ def _stored(x, key):
     law's terms computed in each reader). A conditional's operands are stored; its
     predicate (whether ``key``, a value known at run time only, is NaN; a constant
     one would be folded away) picks between ``x`` and ``x + 0``, equal values.
+    ``key``: an array, its first entry read (0 where it is empty).
     """
-    return jax.lax.cond(jnp.isnan(key), lambda y: y, lambda y: y + 0.0, x)
+    first = jnp.sum(jnp.ravel(key)[:1])
+    return jax.lax.cond(jnp.isnan(first), lambda y: y, lambda y: y + 0.0, x)
 
 
 def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
