@@ -160,9 +160,14 @@ def composite_mass(
     P = P_in + ID
     B = B_in + jnp.einsum("gak,gal->gkl", D, ID)
     # block (h, g): group h's columns of the chain-frame Jacobian where g starts
-    # (D_h for an earlier group of g's chain, carried from an ancestor link's tip)
-    Jst = jnp.asarray(gl.before, dtype)[:, :, None, None] * D[:, None]  # (h, g)
+    # (D_h for an earlier group of g's chain, carried from an ancestor link's tip);
+    # the blocks above the diagonal and half of the diagonal ones; M = U + U^T
+    # rows (h, k), columns (g, l); a zero row and column for columns outside groups
+    # (formed transposed, V = U^T: rows (g, l), columns (h, k), as the product
+    # lays them out; B is symmetric)
+    before = jnp.asarray(gl.before, dtype)
     if tree:
+        Jst = before[:, :, None, None] * D[:, None]  # (h, g)
         in_link = np.arange(n_links)[:, None] == gl.link
         X = [jnp.zeros((n_g, 6, K), dtype) for _ in range(n_links)]
         for i, ld in enumerate(data.links):
@@ -171,11 +176,11 @@ def composite_mass(
                 own_D = jnp.asarray(in_link[p], dtype)[:, None, None] * D
                 X[i] = jnp.einsum("ab,hbk->hak", Gt[p], X[p] + own_D)
         Jst = Jst + jnp.swapaxes(jnp.stack(X)[gl.link], 0, 1)
-    # the blocks above the diagonal and half of the diagonal ones; M = U + U^T
-    # rows (h, k), columns (g, l); a zero row and column for columns outside groups
-    # (formed transposed, V = U^T: rows (g, l), columns (h, k), as the product
-    # lays them out; B is symmetric)
-    V = jnp.einsum("hgak,gal->glhk", Jst, P)
+        V = jnp.einsum("hgak,gal->glhk", Jst, P)
+    else:  # one chain: every group's P against every D in one product, masked
+        P2 = jnp.swapaxes(P, 1, 2).reshape(n_g * K, 6)
+        D2 = jnp.swapaxes(D, 0, 1).reshape(6, n_g * K)
+        V = (P2 @ D2).reshape(n_g, K, n_g, K) * before.T[:, None, :, None]
     eye = jnp.eye(n_g, dtype=dtype)[:, None, :, None]
     V = (V + eye * (0.5 * B)[:, :, None, :]).reshape(n_g * K, n_g * K)
     src = np.array(gb.src)
