@@ -139,7 +139,6 @@ def composite_mass(
         for x in (C, MC)
     )
     P_in = jnp.sum(MCg.reshape(n_g, width, 6, K), axis=1)
-    B_in = jnp.einsum("gxk,gxl->gkl", Cg, MCg)
     # composite inertia past each group: its link's later points, its descendants
     I_past = jnp.einsum("gp,pab->gab", jnp.asarray(gl.after, dtype), Mh)
     n_links = len(data.links)
@@ -158,7 +157,12 @@ def composite_mass(
         I_past = I_past + jnp.stack(desc)[gl.link]
     ID = I_past @ D
     P = P_in + ID
-    B = B_in + jnp.einsum("gak,gal->gkl", D, ID)
+    # the diagonal blocks: the group's own points and the composite inertia past it
+    B = jnp.einsum(
+        "gxk,gxl->gkl",
+        jnp.concatenate([Cg, D], axis=1),
+        jnp.concatenate([MCg, ID], axis=1),
+    )
     # block (h, g): group h's columns of the chain-frame Jacobian where g starts
     # (D_h for an earlier group of g's chain, carried from an ancestor link's tip);
     # the blocks above the diagonal and half of the diagonal ones; M = U + U^T
