@@ -27,7 +27,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float
 from .._jit import jit
 from .._results import RESULTS
 from ..kinematics._api import _as_q
-from ..kinematics._leaves import _cross, _mat_vec
+from ..kinematics._leaves import _add, _cross, _mat_vec
 from ..model._contact import (
     Contact,
     Plane,
@@ -242,20 +242,19 @@ def _law_forces(
     vt = v_rel - times(vn, n)
     f_el = law.normal_force(d)
     fn = f_el - law.damping * law.ramp(d) * vn
-    if keep:
-        cf = jnp.zeros_like(fn)
-        if friction:
-            speed2 = dot(vt, vt)
-            speed = jnp.sqrt(speed2 + law.stick_velocity**2)
-            cf = law.friction_coefficient(jnp.sqrt(speed2 + 1e-30)) * f_el / speed
-        S = _stored(jnp.stack([weight * fn, weight * cf]), d)
-        return times(S[0], n) - times(S[1], vt), S[0], vt
-    f = times(fn, n)
+    cf = jnp.zeros_like(fn)  # friction's viscous coefficient
     if friction:
         speed2 = dot(vt, vt)
         speed = jnp.sqrt(speed2 + law.stick_velocity**2)
         mu = law.friction_coefficient(jnp.sqrt(speed2 + 1e-30))
-        resist = times(mu * f_el / speed, vt)
+        cf = mu * f_el / speed
+    if keep:
+        assert axis is None, "keep: isotropic friction only"
+        S = _stored(jnp.stack([weight * fn, weight * cf]), d)
+        return times(S[0], n) - times(S[1], vt), S[0], vt
+    f = times(fn, n)
+    if friction:
+        resist = times(cf, vt)
         if law.forward_friction is not None and axis is not None:
             # the slip along the body axis (in the tangent plane) meets mu_f forward
             e = axis - times(dot(axis, n), n)
@@ -706,10 +705,6 @@ def _pair_geometry(g, eta, sa, ga, sb, gb, pairs, valid=None) -> _PairGeometry:
     """:func:`_pair_rows` with its vectors as ``(k, 3)`` stacks."""
     k = _pair_rows(g, eta, sa, ga, sb, gb, pairs, valid)
     return k._replace(n=k.n.T, cA=k.cA.T, cB=k.cB.T, v_rel=k.v_rel.T, ends=())
-
-
-def _add(a, b):
-    return [x + y for x, y in zip(a, b, strict=True)]
 
 
 def _stored(x, key):
