@@ -208,6 +208,41 @@ def test_block_on_incline_sticks_or_slides(alpha_deg):
         np.testing.assert_allclose(a, a_exact, rtol=0.02)
 
 
+def test_stick_load_bounds_the_friction_slope_and_keeps_sliding_friction():
+    """With a stick load f* the stick velocity is v_s sqrt(1 + (f_n / f*)^2): at
+    rest, friction's viscous slope (ROS34PW2's tangent, equal by central
+    differences to the law's own derivative, 1e-6) stays below mu f* / v_s at every
+    load and within (f_n / f*)^2 / 2 of mu f_n / v_s below f* (holding as before);
+    sliding at 1 m/s meets Coulomb's mu f_n to 0.5 % up to 100 f* (the stick
+    velocity there 0.1 m/s)."""
+    from sorojax.dynamics._contact import _law_forces, _tangent_slopes
+
+    mu, vs, fstar, k, delta = 0.5, 1e-3, 2.0, 1e4, 1e-6
+    law = sj.ContactLaw(k, delta, static_friction=mu, stick_velocity=vs,
+                        stick_load=fstar)  # fmt: skip
+    ratio = np.array([0.1, 1.0, 10.0, 100.0])
+    fn = fstar * ratio
+    d = jnp.asarray(fn / k + 0.5 * delta)  # past the ramp: f_n = k (d - delta / 2)
+    n = jnp.tile(jnp.array([0.0, 0.0, 1.0]), (4, 1))
+    w = jnp.ones(4)
+    np.testing.assert_allclose(law.normal_force(d), fn, rtol=1e-12)
+    _, _, ct = _tangent_slopes(law, w, d, n, jnp.zeros((4, 3)))
+    ct = np.asarray(ct)
+    np.testing.assert_allclose(ct, mu * fn / (vs * np.sqrt(1 + ratio**2)), rtol=1e-12)
+    assert np.all(ct <= mu * fstar / vs), "the slope passed mu f* / v_s"
+    assert ct[0] >= (1 - 0.5 * ratio[0] ** 2) * mu * fn[0] / vs
+    h = 1e-7  # slip far below v_s: the law's derivative at rest
+
+    def friction_x(vx):
+        v = jnp.zeros((4, 3)).at[:, 0].set(vx)
+        return np.asarray(_law_forces(law, d, n, v, w, True)[0][:, 0])
+
+    slope = (friction_x(h) - friction_x(-h)) / (2 * h)
+    np.testing.assert_allclose(-slope, ct, rtol=1e-6)
+    slide = -friction_x(1.0)
+    assert np.all(slide <= mu * fn) and np.all(slide >= 0.995 * mu * fn)
+
+
 def test_sliding_gradient_through_the_contact_dynamics():
     """d(slide distance)/d(mu) by forward mode through simulate: central differences
     and the Coulomb law's own derivative, -g cos(alpha) T^2 / 2."""
@@ -385,6 +420,7 @@ def test_segment_closest_points_match_brute_force():
             lambda: sj.ContactLaw(stiffness=1.0, stick_velocity=0.0),
             "ContactLaw.stick_velocity",
         ),
+        (lambda: sj.ContactLaw(1.0, stick_load=0.0), "ContactLaw.stick_load"),
         (lambda: sj.ContactLaw(stiffness=1.0, kind="ipc"), "ContactLaw.kind"),
         (lambda: sj.Sphere(0.0), "Sphere.radius"),
         (lambda: sj.Capsule(-0.1), "Capsule.radius"),

@@ -215,3 +215,9 @@ def test_contact_scenes_model_choices():
         rtol=1e-9,
     )
     assert c["stick_velocity_m_per_s"] == adapter.HEAP_STICK_VELOCITY
+    np.testing.assert_allclose(
+        c["plane_stick_load_N_per_m"],
+        adapter.HEAP_STICK_LOAD * adapter.PILE_LAYERS * w_len,
+        rtol=1e-9,
+    )
+    assert m["controller_gains"] == list(adapter.HEAP_CONTROLLER_GAINS), m

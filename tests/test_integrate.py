@@ -157,6 +157,25 @@ def test_bad_arguments(rod):
         sj.simulate(rod, 0.1, adaptive=False)
     with pytest.raises(ValueError, match="ts"):
         sj.simulate(rod, 0.1, ts=jnp.array([0.0, 0.2]))
+    for gains in ((0.3,), (0.3, 0.0), (0.3, float("nan"))):
+        with pytest.raises(ValueError, match="controller_gains"):
+            sj.simulate(rod, 0.1, solver="bosh3", controller_gains=gains)
+
+
+def test_controller_gains_steer_the_explicit_steps_to_the_same_solution(rod):
+    """``controller_gains=(0.3, 0.3)`` (PI control) with Bogacki-Shampine from a
+    pre-bend at rest over 0.1 s: another step sequence than integral control (the
+    gains reach the controller), the same end state to the tolerance's scale (both
+    within 1e-5 of each other at rtol 1e-6, atol 1e-9; the coordinates are O(1))."""
+    q0 = sj.strain_coordinates(rod, [0.0, 2.0, 0.0, 0.0, 0.0, 0.0])
+    steps = dict(ts=[0.1], solver="bosh3", rtol=1e-6, atol=1e-9)
+    runs = [
+        sj.simulate(rod, 0.1, q0, controller_gains=gains, **steps)
+        for gains in (None, (0.3, 0.3))
+    ]
+    assert all(tr.result == sj.RESULTS.successful for tr in runs)
+    assert int(runs[0].num_steps) != int(runs[1].num_steps)
+    np.testing.assert_allclose(runs[1].q[-1], runs[0].q[-1], atol=1e-5)
 
 
 @pytest.mark.slow  # three programs with Newton root finders (~16 s); sorojax's own

@@ -136,7 +136,8 @@ def test_every_part_round_trips():
     added mass; every obstacle with poses, its own law and a motion; rigid contact
     shapes, radius overrides, rod pairs, tubes and self-contact."""
     law = sj.ContactLaw(1e4, 1e-4, damping=1.0, static_friction=0.5,
-                        kinetic_friction=0.3, forward_friction=0.1)  # fmt: skip
+                        kinetic_friction=0.3, forward_friction=0.1,
+                        stick_load=2.0)  # fmt: skip
     rot = np.asarray(scenes.rotation_z(0.3))
     sections = [
         sj.CircularSection((0.01, 0.006), torsion="polar", shear_coefficient=1.0),

@@ -245,7 +245,7 @@ def _law_forces(
     cf = jnp.zeros_like(fn)  # friction's viscous coefficient
     if friction:
         speed2 = dot(vt, vt)
-        speed = jnp.sqrt(speed2 + law.stick_velocity**2)
+        speed = jnp.sqrt(speed2 + law.stick_speed_squared(f_el))
         mu = law.friction_coefficient(jnp.sqrt(speed2 + 1e-30))
         cf = mu * f_el / speed
     if keep:
@@ -1157,17 +1157,19 @@ def _tangent_slopes(law, weight, d, n, v_rel, friction: bool = True):
 
     ``(k_n, c_n - c_t, c_t)``: the contact's stiffness and damping are
     ``k_n n n^T`` and ``(c_n - c_t) n n^T + c_t I`` (world), with ``c_t = mu f_n /
-    sqrt(|v_t|^2 + v_s^2)`` the friction's viscous slope.
+    sqrt(|v_t|^2 + v_s^2)`` the friction's viscous slope (v_s grown by the law's
+    ``stick_load``, :meth:`~sorojax.ContactLaw.stick_speed_squared`).
     """
     kn = weight * jax.vmap(jax.grad(law.normal_force))(d)
     cn = weight * law.damping * law.ramp(d)
     vn = jnp.sum(v_rel * n, axis=-1)
     vt = v_rel - vn[:, None] * n
+    f_el = law.normal_force(d)
     ct = (
         weight
         * law.friction_coefficient(_safe_norm(vt))
-        * law.normal_force(d)
-        / jnp.sqrt(jnp.sum(vt * vt, axis=-1) + law.stick_velocity**2)
+        * f_el
+        / jnp.sqrt(jnp.sum(vt * vt, axis=-1) + law.stick_speed_squared(f_el))
     )
     if not friction:
         ct = jnp.zeros_like(ct)

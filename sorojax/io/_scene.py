@@ -1164,6 +1164,12 @@ def _define() -> None:
         Key("stribeck_velocity", Number("m/s"), "Stribeck speed", "1e-2", omit=1e-2),
         Key("forward_friction", Number(), "mu_f along +x (anisotropic)", "none"),
         Key(
+            "stick_load",
+            Number("N/m on rods, N per point"),
+            "f*: the stick velocity grows past it",
+            "none",
+        ),
+        Key(
             "kind",
             String(("penalty", "barrier")),
             "normal law",
@@ -1410,6 +1416,12 @@ def _define() -> None:
         Key("dt0", Number("s"), "initial (or fixed) step", "automatic"),
         Key("adaptive", Boolean(), "adaptive steps", "the solver's"),
         Key("max_steps", Integer(1), "most steps", "16384"),
+        Key(
+            "controller_gains",
+            Array(2),
+            "(pcoeff, icoeff) of the step-size controller",
+            "the solver's",
+        ),
         build=lambda kw, p: kw,
     )
     _spec(

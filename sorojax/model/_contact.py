@@ -26,9 +26,10 @@ plus a damping ``-c s(d) v_n`` (``s`` a smooth step from 0 at d = 0 to 1 at
 ``d = delta``; it always opposes the normal velocity, so it only dissipates) and a
 regularised Coulomb friction ``-mu(|v_t|) f_n v_t / sqrt(|v_t|^2 + v_s^2)`` with
 ``mu`` going from the static coefficient at rest to the kinetic one above the
-Stribeck velocity. On soft links the law is per unit length (k [N/m^2], c [N s/m^2]:
-each sample carries the length it stands for); on rigid contact points, rod-rod
-segment pairs and self-contact it is per point (k [N/m], c [N s/m]).
+Stribeck velocity (and, with a stick load, ``v_s`` growing with ``f_n`` past it).
+On soft links the law is per unit length (k [N/m^2], c [N s/m^2]: each sample
+carries the length it stands for); on rigid contact points, rod-rod segment pairs
+and self-contact it is per point (k [N/m], c [N s/m]).
 """
 
 import math
@@ -141,6 +142,18 @@ class ContactLaw(eqx.Module):
             to its limit. Smaller holds better and is stiffer to integrate.
         stribeck_velocity: [m/s] > 0, the slip speed over which mu goes from
             mu_s to mu_k (``mu = mu_k + (mu_s - mu_k) / (1 + (v / v_str)^2)``).
+        stick_load: optional f* > 0 [N/m on soft links, N per point], the normal
+            force past which the stick velocity grows with it: friction meets
+            ``v_s sqrt(1 + (f_n / f*)^2)`` instead of v_s, so that its viscous
+            slope ``mu f_n / v_s`` stays below ``mu f* / v_s`` however hard the
+            surfaces press. An impact's normal force (many times the resting load)
+            then does not make sticking friction a damping faster than the
+            contact's own scales (which would bound an explicit integrator's
+            step); sliding friction (``|v_t|`` well above the stick velocity) is
+            unchanged, and a contact pressed by less than f* holds as with v_s (its
+            creep grows by ``(f_n / f*)^2 / 2`` of itself). Choose it a few times
+            the largest resting load. None: the stick velocity is v_s at every
+            load.
         forward_friction: optional mu_f >= 0 for slip along the body's +x axis
             (a rod's tangent, a rigid link's CM-frame x) on an obstacle: anisotropic
             friction, as scales or bristles give (a crawler, a snake). The slip's
@@ -158,6 +171,7 @@ class ContactLaw(eqx.Module):
     stick_velocity: Float[Array, ""]
     stribeck_velocity: Float[Array, ""]
     forward_friction: Float[Array, ""] | None
+    stick_load: Float[Array, ""] | None
     kind: str = eqx.field(static=True)
 
     def __init__(
@@ -171,6 +185,7 @@ class ContactLaw(eqx.Module):
         stribeck_velocity: ArrayLike = 1e-2,
         forward_friction: ArrayLike | None = None,
         kind: str = "penalty",
+        stick_load: ArrayLike | None = None,
     ):
         if kind not in ("penalty", "barrier"):
             raise ValueError(
@@ -196,6 +211,11 @@ class ContactLaw(eqx.Module):
             None
             if forward_friction is None
             else _scalar("ContactLaw.forward_friction", forward_friction, False)
+        )
+        self.stick_load = (
+            None
+            if stick_load is None
+            else _scalar("ContactLaw.stick_load", stick_load, True)
         )
 
     def normal_force(self, d: Array) -> Array:
@@ -254,6 +274,17 @@ class ContactLaw(eqx.Module):
         else:
             s = jnp.clip(d / self.smoothing, 0.0, 1.0)
         return s * s * (3.0 - 2.0 * s)
+
+    def stick_speed_squared(self, f_n: Array) -> Array:
+        """The squared stick velocity friction meets under normal force ``f_n``.
+
+        ``v_s^2``, or ``v_s^2 (1 + (f_n / f*)^2)`` with a :attr:`stick_load` f*.
+        """
+        vs2 = self.stick_velocity**2
+        if self.stick_load is None:
+            return vs2
+        r = f_n / self.stick_load
+        return vs2 * (1.0 + r * r)
 
     def friction_coefficient(self, speed: Array) -> Array:
         """``mu`` at slip speed ``speed`` (static at rest, kinetic when sliding)."""
