@@ -181,10 +181,8 @@ def composite_mass(
                 X[i] = jnp.einsum("ab,hbk->hak", Gt[p], X[p] + own_D)
         Jst = Jst + jnp.swapaxes(jnp.stack(X)[gl.link], 0, 1)
         V = jnp.einsum("hgak,gal->glhk", Jst, P)
-    else:  # one chain: every group's P against every D in one product, masked
-        P2 = jnp.swapaxes(P, 1, 2).reshape(n_g * K, 6)
-        D2 = jnp.swapaxes(D, 0, 1).reshape(6, n_g * K)
-        V = (P2 @ D2).reshape(n_g, K, n_g, K) * before.T[:, None, :, None]
+    else:  # links on the ground: in coordinate order, from the start
+        return lock_padding(_chain_blocks(P, D, B, gl, np.array(gb.src)), data.locked)
     eye = jnp.eye(n_g, dtype=dtype)[:, None, :, None]
     V = (V + eye * (0.5 * B)[:, :, None, :]).reshape(n_g * K, n_g * K)
     src = np.array(gb.src)
@@ -192,6 +190,37 @@ def composite_mass(
         V = jnp.pad(V, ((0, 1), (0, 1)))
     V = _take_runs(_take_runs(V, src, 0), src, 1)
     return lock_padding(V + V.T, data.locked)
+
+
+def _chain_blocks(P, D, B, gl: GroupLayout, src: np.ndarray) -> Array:
+    """``M`` (before locking) of links on the ground, formed in coordinate order.
+
+    ``P``, ``D`` ``(n_g, 6, K)`` and the diagonal blocks ``B`` ``(n_g, K, K)`` of
+    :func:`composite_mass`; ``src``: each coordinate's group column (``n_g K``: none).
+    Every group's P against every D in one product of the coordinates' rows and
+    columns (taken before it: the product is then M's size, with nothing to gather
+    after it), masked where the row's group precedes the column's; each group's
+    diagonal block written over its zero block; ``M = V + V^T``.
+    """
+    n_g, _, K = P.shape
+    P2 = jnp.swapaxes(P, 1, 2).reshape(n_g * K, 6)
+    D2 = jnp.swapaxes(D, 0, 1).reshape(6, n_g * K)
+    if src.max() == n_g * K:  # a zero row for the coordinates outside the groups
+        P2 = jnp.concatenate([P2, jnp.zeros_like(P2[:1])])
+        D2 = jnp.concatenate([D2, jnp.zeros_like(D2[:, :1])], axis=1)
+    grp = np.where(src < n_g * K, src // K, -1)
+    g = np.maximum(grp, 0)
+    inside = (grp[:, None] >= 0) & (grp[None, :] >= 0)
+    mask = np.where(inside, gl.before.T[g[:, None], g[None, :]], 0.0)
+    V = (_take_runs(P2, src, 0) @ _take_runs(D2, src, 1)) * jnp.asarray(mask, P.dtype)
+    # each group's coordinates are consecutive, its columns 0..k-1 in order
+    # (GroupBasis); its own block of V is zero (a group does not precede itself)
+    for h in range(n_g):
+        pos = np.flatnonzero(grp == h)
+        if len(pos):
+            o, k = int(pos[0]), len(pos)
+            V = jax.lax.dynamic_update_slice(V, 0.5 * B[h, :k, :k], (o, o))
+    return V + V.T
 
 
 def _take_runs(x, idx: np.ndarray, axis: int):
