@@ -159,11 +159,11 @@ SOLVER_ORDER = 5
 HEAP_SOLVER = "bosh3"
 """Integrator of a heaping rope (the pile): Bogacki-Shampine 3(2), three evaluations
 a step against Tsit5's six. At the heap's loose tolerance (:data:`CONTACT_RTOL`)
-its steps are not much shorter than Tsit5's: on the pile (2-core CPU, one hour)
-18,224 steps and 34-36 s against Tsit5's 11,394 steps and 47 s, with the same heap
-(height 1.73 against 1.71 diameters, footprint 0.183 against 0.182 m, settling
-residual 8.5e-3 against 7.3e-3). Heun's and Ralston's second-order pairs took
-48,000-50,000 steps."""
+its steps are not much shorter than Tsit5's: on the pile 14,400-14,600 steps
+against Tsit5's 9,500 (with :data:`HEAP_CONTROLLER_GAINS` and
+:data:`HEAP_STICK_LOAD`; 18,224 against 11,394 without them, 34-36 s against 47 s,
+with the same heap). Heun's and Ralston's second-order pairs took 48,000-50,000
+steps."""
 
 HEAP_SOLVER_ORDER = 3
 """Order of the local error of :data:`HEAP_SOLVER`'s step."""
