@@ -181,7 +181,21 @@ def set_runtime_flags(threads: int | None = None) -> bool:
     missing = [f for f in RUNTIME_FLAGS if f.split("=")[0] not in names]
     os.environ["XLA_FLAGS"] = " ".join([current, *missing]).strip()
     if threads is not None:
-        os.environ.setdefault("NPROC", str(threads))
+        _runtime_threads(threads)
+    return True
+
+
+def _runtime_threads(threads: int) -> bool:
+    """``NPROC = threads`` for JAX's CPU client, unless set or the backend is running.
+
+    Whether it was set (XLA reads it once, when JAX starts its backend: a process
+    that has run JAX already keeps its pool; a user's ``NPROC`` is kept).
+    """
+    from jax._src import xla_bridge
+
+    if "NPROC" in os.environ or xla_bridge.backends_are_initialized():
+        return False
+    os.environ["NPROC"] = str(threads)
     return True
 
 

@@ -88,7 +88,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-import os
 
 import equinox as eqx
 import jax
@@ -105,6 +104,7 @@ from cosseratbench import (
 from cosseratbench.scenario import Motion, Rod
 
 import sorojax as sj
+from sorojax._jit import _runtime_threads
 from sorojax.model._layout import ROD
 
 MODE_NAMES = ("torsion", "bend_y", "bend_z", "stretch", "shear_y", "shear_z")
@@ -1082,6 +1082,7 @@ def _laws(scenario: Scenario, method: str, spacing: float) -> _Laws:
             f = w_len * PILE_LAYERS
         k = f / (ob_pen * r_min)
         mu = max(ob.friction, rod_mu)
+        stick_load = HEAP_STICK_LOAD * f if heap else None
         obstacle_laws.append(
             sj.ContactLaw(
                 stiffness=k,
@@ -1089,13 +1090,13 @@ def _laws(scenario: Scenario, method: str, spacing: float) -> _Laws:
                 damping=2.0 * math.sqrt(k * mass_len),
                 static_friction=mu,
                 stick_velocity=v_s,
-                stick_load=HEAP_STICK_LOAD * f if heap else None,
+                stick_load=stick_load,
             )
         )
         info[f"{ob.kind}_stiffness_N_per_m2"] = k
         info[f"{ob.kind}_friction"] = mu
-        if heap:
-            info[f"{ob.kind}_stick_load_N_per_m"] = HEAP_STICK_LOAD * f
+        if stick_load is not None:
+            info[f"{ob.kind}_stick_load_N_per_m"] = stick_load
     if method != "statics" and _frictional(scenario):
         info["stick_velocity_m_per_s"] = v_s
     info["smoothing_m"] = SMOOTHING * pen * r_min
@@ -1349,20 +1350,6 @@ def _advance_chunk(
 # long-run options (XLA's YNNPACK fusions off).
 _advance = sj.jit(_advance_chunk, tiered=False)
 _advance_long = sj.jit(_advance_chunk, tiered=False, long_run=True)
-
-
-def _runtime_threads(threads: int) -> bool:
-    """``NPROC = threads`` for JAX's CPU client, unless set or the backend is running.
-
-    Whether it was set (XLA reads it once, when JAX starts its backend: a process
-    that has run JAX already keeps its pool; a user's ``NPROC`` is kept).
-    """
-    from jax._src import xla_bridge
-
-    if "NPROC" in os.environ or xla_bridge.backends_are_initialized():
-        return False
-    os.environ["NPROC"] = str(threads)
-    return True
 
 
 # ------------------------------------------------------------------- the adapter
