@@ -15,6 +15,7 @@ it; the force law is continuously differentiable, so Newton's tangent and the
 gradients are continuous (they jump in their second derivative at touch-down).
 """
 
+import functools
 import math
 from typing import NamedTuple
 
@@ -554,40 +555,33 @@ def _capacity(contact: Contact, entry) -> int:
     return pair_capacity(contact, len(ia), n_seg)
 
 
-def _first_true(mask, k: int):
-    """``(idx, count)``: indices of ``mask``'s first ``k`` True entries; their count.
+def _first_true(c, k: int):
+    """``idx``: indices of a mask's first ``k`` True entries, from its prefix sum ``c``.
 
-    Indices past the count are 0: ``jnp.nonzero(mask, size=k, fill_value=0)``
-    without its scatter. The m-th True entry is where the running count first
-    reaches m, a binary search of the ``k`` counts in the prefix sum (XLA's CPU
-    backend runs a scatter as a loop over its rows).
+    Indices past the count ``c[-1]`` are 0: ``jnp.nonzero(mask, size=k,
+    fill_value=0)`` without its scatter. The m-th True entry is where the running
+    count first reaches m, a binary search of the ``k`` counts in the prefix sum
+    (XLA's CPU backend runs a scatter as a loop over its rows).
     """
-    c = jnp.cumsum(mask.astype(int))
     idx = jnp.searchsorted(c, jnp.arange(1, k + 1, dtype=c.dtype))
-    return jnp.where(idx < mask.shape[0], idx, 0), c[-1]
+    return jnp.where(idx < c.shape[0], idx, 0)
 
 
-def _candidates(contact: Contact, g, entry):
-    """``(pairs, valid, overflow)``: the segment pairs the narrow phase examines.
+def _broad_phase(contact: Contact, g, entry):
+    """``(table, c)``: one :func:`_pair_list` entry's segment pairs and broad phase.
 
-    ``pairs``: the rows ``(ia, ib, a0, a1, b0, b1)``, each pair's segments on A and
-    B and their ends' samples (from one static table, in one gather).
-
-    All of them (static indices, ``valid`` None) when the capacity holds every
-    pair; else the broad phase: each segment's bounding sphere (centre at its
-    midpoint, radius half its length plus its larger end radius), grown by the law's
-    reach (``smoothing``, a barrier's gap), and the pairs whose spheres overlap,
-    gathered in their order into ``K`` rows (:func:`_first_true`: a prefix sum and
-    a binary search, no sort); ``valid`` marks the rows that hold one (the others
-    repeat pair 0 and carry no force). A pair left out has spheres apart, so its
-    segments are further apart than their radii and the reach: no force. More
-    overlapping pairs than ``K`` is an ``overflow``.
+    ``table``: the rows ``(ia, ib, a0, a1, b0, b1)`` of every segment pair, its
+    segments on A and B and their ends' samples (static). ``c``: the prefix sum of
+    the pairs whose bounding spheres overlap (each segment's: centre at its
+    midpoint, radius half its length plus its larger end radius, grown by the law's
+    reach, ``smoothing`` or a barrier's gap); None where the capacity holds every
+    pair (no broad phase). A pair left out has spheres apart, so its segments are
+    further apart than their radii and the reach: no force.
     """
     sa, ga, sb, gb, ia, ib = entry
-    k = _capacity(contact, entry)
     table = np.stack([ia, ib, ga.start[ia], ga.end[ia], gb.start[ib], gb.end[ib]])
-    if k >= len(ia):
-        return tuple(table), None, jnp.zeros((), bool)
+    if _capacity(contact, entry) >= len(ia):
+        return table, None
     gs = jax.lax.stop_gradient(g)
 
     def spheres(smp, seg):
@@ -609,9 +603,51 @@ def _candidates(contact: Contact, g, entry):
     B = A if sa is sb else _stored(jnp.concatenate([cB.T, RB[None]]), cB)
     d2 = sum((A[i][ia] - B[i][ib]) ** 2 for i in range(3))
     near = ~(d2 >= (A[3][ia] + B[3][ib] + reach) ** 2)  # NaN: cannot be ruled out
-    idx, count = _first_true(near, k)
-    valid = jnp.arange(k) < count
-    return tuple(jnp.asarray(table)[:, idx]), valid, count > k
+    return table, jnp.cumsum(near.astype(int))
+
+
+def _pick(table, c, k: int):
+    """``(pairs, valid)``: the first ``k`` candidates of :func:`_broad_phase`.
+
+    Gathered in their order into ``k`` rows (:func:`_first_true`: a binary search
+    of the prefix sum, no sort); ``valid`` marks the rows that hold one (the others
+    repeat pair 0 and carry no force). All pairs (static, ``valid`` None) where
+    there is no broad phase (``c`` None).
+    """
+    if c is None:
+        return tuple(table), None
+    idx = _first_true(c, k)
+    return tuple(jnp.asarray(table)[:, idx]), jnp.arange(k) < c[-1]
+
+
+def _candidates(contact: Contact, g, entry):
+    """``(pairs, valid, overflow)``: the segment pairs the narrow phase examines.
+
+    The broad phase's (:func:`_broad_phase`) first candidates in the capacity's
+    rows (:func:`_pick`); more candidates than rows is an ``overflow``.
+    """
+    table, c = _broad_phase(contact, g, entry)
+    k = _capacity(contact, entry)
+    pairs, valid = _pick(table, c, k)
+    over = jnp.zeros((), bool) if c is None else c[-1] > k
+    return pairs, valid, over
+
+
+def _small_capacity(contact: Contact, entry) -> int | None:
+    """Rows of the narrow phase's smaller pass (static; None: one pass).
+
+    :func:`_pair_terms` examines the candidates in a quarter of the capacity's
+    rows when they fit there (a heap at rest uses a fraction of the capacity, which
+    is sized for denser contact), and in all of them otherwise.
+    """
+    ia = entry[4]
+    k = _capacity(contact, entry)
+    small = k // SMALL_PASS_FRACTION
+    return small if k < len(ia) and small >= SMALL_PASS_MIN else None
+
+
+SMALL_PASS_FRACTION = 4  # the smaller pass: this fraction of the capacity's rows
+SMALL_PASS_MIN = 32  # ... where it holds at least this many
 
 
 def _segment_velocity(x, w, v, i0, i1, c, lam):
@@ -728,63 +764,100 @@ def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
 
     ``wrenches``: ``(points, W)``, body wrenches ``W`` at the rods' samples'
     points (static, distinct within each entry). Each rod pair's narrow phase
-    works on its broad phase's candidates (:func:`_candidates`), on rows
-    (:func:`_pair_rows`); each pair's force is split to its segments' four ends
-    (weighted by the closest points' parameters), summed per sample in the world
-    with its moment about the sample, and turned into the sample's body wrench
-    once.
+    works on its broad phase's candidates (:func:`_broad_phase`), on rows
+    (:func:`_pair_narrow`). Where the candidates fit in a quarter of the capacity
+    (:func:`_small_capacity`), a conditional takes a narrow phase on that many
+    rows; its report rows are padded to the capacity's with copies of an empty row
+    (the rows the full pass leaves empty), so both give the same forces and report.
     """
-    law = contact.law
     wrenches, rows = [], []
     overflow = jnp.zeros((), bool)
     for entry in pairs:
         sa, ga, sb, gb, _, _ = entry
-        pick, valid, over = _candidates(contact, g, entry)
-        overflow = overflow | over
-        k = _pair_rows(g, eta, sa, ga, sb, gb, pick, valid)
-        f, fn, vt = _law_forces(
-            law,
-            k.d,
-            k.n,
-            k.v_rel,
-            k.share,
-            friction and contact.friction_in_rod_pairs,
-            comp=0,
-            keep=True,
-        )
-        ends = []  # (sample, world moment about it and force): (k, 6)
-        for idx, c_, lam, x in zip(
-            (k.a0, k.a1, k.b0, k.b1),
-            (k.cA, k.cA, k.cB, k.cB),
-            (1 - k.s, k.s, -(1 - k.u), -k.u),
-            k.ends,
-            strict=True,
-        ):
-            F = lam[None] * f
-            mf = _cross(list(c_ - x), list(F)) + list(F)
-            ends.append((idx, jnp.stack(mf, axis=1)))  # not a transpose of rows
-        if sa is sb:
-            parts = [(sa, ends)]
+        table, c = _broad_phase(contact, g, entry)
+        K = _capacity(contact, entry)
+        small = _small_capacity(contact, entry)
+        args = (contact, entry, table, c, g, eta, friction, K)
+        if small is None:
+            sums, row = _pair_pass(*args, K)
         else:
-            parts = [(sa, ends[:2]), (sb, ends[2:])]
-        for smp, e in parts:
-            idx = _join_indices([i for i, _ in e])
-            val = jnp.concatenate([v for _, v in e])
-            n_s = len(smp.point)
-            sums = jnp.zeros((n_s, 6), val.dtype).at[idx].add(val)
+            sums, row = jax.lax.cond(
+                c[-1] < small,
+                functools.partial(_pair_pass, *args, small),
+                functools.partial(_pair_pass, *args, K),
+            )
+        if c is not None:
+            overflow = overflow | (c[-1] > K)
+        for smp, S in zip((sa,) if sa is sb else (sa, sb), sums, strict=True):
             R = g[smp.point, :3, :3]
             wrenches.append(
                 (smp.point, jnp.concatenate(
-                    [_rotate_back(R, sums[:, :3]), _rotate_back(R, sums[:, 3:])],
-                    axis=-1,
+                    [_rotate_back(R, S[:, :3]), _rotate_back(R, S[:, 3:])], axis=-1
                 ))
             )  # fmt: skip
-        energy = jnp.sum(k.share * law.potential(k.d))
-        rows.append((
-            k.cA.T, k.n.T, k.d, fn, f.T, vt.T, energy,
-            np.full(k.d.shape[0], sa.link[0]),
-        ))  # fmt: skip
+        rows.append((*row, np.full(K, sa.link[0])))
     return wrenches, rows, overflow
+
+
+def _pair_pass(contact, entry, table, c, g, eta, friction, K: int, k: int):
+    """:func:`_pair_narrow` on the first ``k`` candidates, its rows padded to ``K``.
+
+    The padding repeats row ``k - 1``, empty where ``k < K`` is taken (fewer than
+    ``k`` candidates): the rows the full pass leaves empty.
+    """
+    pick = _pick(table, c, k)
+    sums, row = _pair_narrow(contact, entry, pick, g, eta, friction)
+    if k < K:
+        row = tuple(
+            jnp.concatenate([r, jnp.broadcast_to(r[-1:], (K - k, *r.shape[1:]))])
+            if r.ndim
+            else r
+            for r in row
+        )
+    return sums, row
+
+
+def _pair_narrow(contact: Contact, entry, pick, g, eta, friction: bool):
+    """One rod pair's narrow phase on the rows ``pick = (pairs, valid)``.
+
+    Returns ``(sums, row)``: ``sums``, world wrenches (moment, force) summed at each
+    rod's samples (one ``(n, 6)`` array per rod: one for self-contact), and the
+    report's row ``(cA, n, d, fn, f, vt, energy)``. Each pair's force is split to
+    its segments' four ends (weighted by the closest points' parameters) as a
+    force and its moment about the end's sample.
+    """
+    law = contact.law
+    sa, ga, sb, gb, _, _ = entry
+    k = _pair_rows(g, eta, sa, ga, sb, gb, *pick)
+    f, fn, vt = _law_forces(
+        law,
+        k.d,
+        k.n,
+        k.v_rel,
+        k.share,
+        friction and contact.friction_in_rod_pairs,
+        comp=0,
+        keep=True,
+    )
+    ends = []  # (sample, world moment about it and force): (k, 6)
+    for idx, c_, lam, x in zip(
+        (k.a0, k.a1, k.b0, k.b1),
+        (k.cA, k.cA, k.cB, k.cB),
+        (1 - k.s, k.s, -(1 - k.u), -k.u),
+        k.ends,
+        strict=True,
+    ):
+        F = lam[None] * f
+        mf = _cross(list(c_ - x), list(F)) + list(F)
+        ends.append((idx, jnp.stack(mf, axis=1)))  # not a transpose of rows
+    parts = [(sa, ends)] if sa is sb else [(sa, ends[:2]), (sb, ends[2:])]
+    sums = []
+    for smp, e in parts:
+        idx = _join_indices([i for i, _ in e])
+        val = jnp.concatenate([v for _, v in e])
+        sums.append(jnp.zeros((len(smp.point), 6), val.dtype).at[idx].add(val))
+    energy = jnp.sum(k.share * law.potential(k.d))
+    return tuple(sums), (k.cA.T, k.n.T, k.d, fn, f.T, vt.T, energy)
 
 
 def _bore_radii(linkage: Linkage, tube: int) -> Array:
