@@ -78,16 +78,24 @@ class LeafFrames(NamedTuple):
 class LeafRecord(NamedTuple):
     """The leaves' steps, component by component (rows over the leaves).
 
-    ``R`` ``(3, 3, n)`` and ``p`` ``(3, n)``: exp(Omega); ``Ts``, ``Q`` ``(3, 3, n)``:
-    the blocks of T(Omega) = [[Ts, 0], [Q, Ts]]; ``xi`` ``(2, 6, n)``: the strains at
-    the step's Zanna points.
+    ``k`` ``(18, n)``: each step's twist ``Omega = (w, v)`` and the scalars of its
+    exp and tangent (:func:`_step_rows`), from which :func:`_rot`, :func:`_ts` and
+    :func:`_q` apply ``R``, ``Ts`` and ``Q`` (exp(Omega) = (R, p), T(Omega) =
+    [[Ts, 0], [Q, Ts]]) to rows without forming them; ``p`` ``(3, n)``; ``R``
+    ``(3, 3, n)``, formed for the leaves' poses and twists and the wrenches given on
+    them (XLA drops it where none of those is read); ``xi`` ``(2, 6, n)``: the
+    strains at the step's Zanna points.
     """
 
-    R: Array
+    k: Array
     p: Array
-    Ts: Array
-    Q: Array
+    R: Array
     xi: Array
+
+    @property
+    def theta2(self) -> Array:
+        """Each step's squared turn ``|w|^2`` ``(n,)``."""
+        return self.k[13]
 
 
 def applies(data) -> bool:
@@ -134,16 +142,21 @@ def _add(a, b):
     return [x + y for x, y in zip(a, b, strict=True)]
 
 
-def _exp_and_tangent(Omega):
-    """``R, p, Ts, Q`` of :func:`~sorojax.kinematics._step.exp_and_tangent`.
+def _step_rows(Omega):
+    """``(k, p)``: the rows of :class:`LeafRecord` for the steps ``Omega`` ``(6, n)``.
 
-    ``Omega``: the twists ``(6, n)``; returns ``(3, 3, n)``, ``(3, n)``, ``(3, 3, n)``,
-    ``(3, 3, n)``. The same closed forms (W = hat(w), V = hat(v)) and Taylor series
-    (by Horner's rule, each coefficient's own). The closed forms (a square root, a
-    sine, a cosine and five divisions per step) are evaluated only where some step
-    turns by a radian or more (a ``lax.cond``): XLA's CPU runs sine and cosine
-    element by element (~9 ns per value and function, the largest kernel of a
-    thousand leaves), and short steps take the series.
+    ``k``: ``w``, ``v``, ``w x v``, the exp's coefficients ``A, B, C, D`` (the same
+    closed forms and Taylor series as :func:`~sorojax.kinematics._step.
+    exp_and_tangent`, by Horner's rule, each coefficient's own), ``theta^2`` and
+    the products of ``Q`` (:func:`_q`) ``0.5 - 2 D theta^2``, ``w.v (3D - C)``,
+    ``2 w.v (F theta^2 - C)`` and ``2 F w.v``; ``p`` ``(3, n)``: exp's translation.
+    ``R``, ``Ts`` and ``Q`` are applied from these (each a cross product, two or
+    three dot products and a sum of scaled rows) rather than formed: their nine
+    entries each cost more than the products they serve. The closed forms (a square
+    root, a sine, a cosine and five divisions per step) are evaluated only where
+    some step turns by a radian or more (a ``lax.cond``): XLA's CPU runs sine and
+    cosine element by element (~9 ns per value and function, the largest kernel of
+    a thousand leaves), and short steps take the series.
     """
     w, v = Omega[:3], Omega[3:]
     th2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
@@ -167,33 +180,73 @@ def _exp_and_tangent(Omega):
         for ck in col[-2::-1]:
             series = series * th2 + ck
         coef.append(jnp.where(small, series, closed_form))
+    A, B, C, D, F = coef
     wv = w[0] * v[0] + w[1] * v[1] + w[2] * v[2]
-    k = _kept(coef + [th2, wv] + _cross(w, v))
-    A, B, C, D, F, th2, wv = (k[i] for i in range(7))
-    wxv = k[7:]
-    zero = jnp.zeros_like(th2)
-    W = [[zero, -w[2], w[1]], [w[2], zero, -w[0]], [-w[1], w[0], zero]]
-    V = [[zero, -v[2], v[1]], [v[2], zero, -v[0]], [-v[1], v[0], zero]]
-
-    def eye(i, j, x=1.0):
-        return x if i == j else 0.0
-
-    W2 = [[w[i] * w[j] - eye(i, j, th2) for j in range(3)] for i in range(3)]
-    R = [[eye(i, j) + A * W[i][j] + B * W2[i][j] for j in range(3)] for i in range(3)]
-    Ts = [[eye(i, j) + B * W[i][j] + C * W2[i][j] for j in range(3)] for i in range(3)]
+    wxv = _cross(w, v)
+    k = _kept(
+        list(w) + list(v) + wxv
+        + [A, B, C, D, th2, 0.5 - 2.0 * D * th2, wv * (3.0 * D - C),
+           2.0 * wv * (F * th2 - C), 2.0 * F * wv]
+    )  # fmt: skip
     p = [v[i] + B * wxv[i] + C * (w[i] * wv - th2 * v[i]) for i in range(3)]
-    Q = [
+    return k, _kept(p)
+
+
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _rot(k, a, transpose: bool = False):
+    """``R a`` (or ``R^T a``), ``R = I + A W + B W^2``, for rows ``a``: 3 rows."""
+    w, A, B, th2 = k[0:3], k[9], k[10], k[13]
+    wa, wxa = _dot(w, a), _cross(w, a)
+    sA = -A if transpose else A
+    return [a[i] + sA * wxa[i] + B * (w[i] * wa - th2 * a[i]) for i in range(3)]
+
+
+def _ts(k, a, transpose: bool = False):
+    """``Ts a`` (or ``Ts^T a``), ``Ts = I + B W + C W^2``, for rows ``a``: 3 rows."""
+    w, B, C, th2 = k[0:3], k[10], k[11], k[13]
+    wa, wxa = _dot(w, a), _cross(w, a)
+    sB = -B if transpose else B
+    return [a[i] + sB * wxa[i] + C * (w[i] * wa - th2 * a[i]) for i in range(3)]
+
+
+def _q(k, a, transpose: bool = False):
+    """``Q a`` (or ``Q^T a``) for rows ``a``: 3 rows.
+
+    ``Q = V/2 + C (v w^T + w v^T - 2 (w.v) I - (w.v) W) + D (w (w x v)^T - (w x v)
+    w^T - 2 theta^2 V) + 3 D (w.v) W - 2 F (w.v) W^2``, applied as
+    ``(1/2 - 2 D theta^2) v x a + w.v (3D - C) w x a + C (w.a) v + (C v.a + D (w x
+    v).a - 2 F w.v w.a) w - D (w.a) w x v + 2 w.v (F theta^2 - C) a``; its
+    transpose turns the signs of the antisymmetric terms (``V``, ``W`` and ``D``'s).
+    """
+    w, v, wxv, C, D = k[0:3], k[3:6], k[6:9], k[11], k[12]
+    al1, al2, beta, tfw = k[14], k[15], k[16], k[17]
+    wa, va, xa = _dot(w, a), _dot(v, a), _dot(wxv, a)
+    vxa, wxa = _cross(v, a), _cross(w, a)
+    if transpose:
+        al1, al2, D = -al1, -al2, -D
+    sv, sw, sx = C * wa, C * va + D * xa - tfw * wa, D * wa
+    return [
+        al1 * vxa[i] + al2 * wxa[i] + sv * v[i] + sw * w[i] - sx * wxv[i]
+        + beta * a[i]
+        for i in range(3)
+    ]  # fmt: skip
+
+
+def _rot_matrix(k):
+    """``R``'s entries ``[[R_ij]]`` as rows (the world frames read its columns)."""
+    w, A, B, th2 = k[0:3], k[9], k[10], k[13]
+    W = [[None, -w[2], w[1]], [w[2], None, -w[0]], [-w[1], w[0], None]]
+    return [
         [
-            0.5 * V[i][j]
-            + C * (v[i] * w[j] + w[i] * v[j] - eye(i, j, 2.0 * wv) - wv * W[i][j])
-            + D * (w[i] * wxv[j] - wxv[i] * w[j] - 2.0 * th2 * V[i][j])
-            + 3.0 * D * wv * W[i][j]
-            - 2.0 * F * wv * W2[i][j]
+            1.0 + B * (w[i] * w[i] - th2) if i == j
+            else A * W[i][j] + B * w[i] * w[j]
             for j in range(3)
         ]
         for i in range(3)
-    ]
-    return _kept(R), _kept(p), _kept(Ts), _kept(Q)
+    ]  # fmt: skip
 
 
 def _ad(a, b):
@@ -223,18 +276,19 @@ def leaf_rates(data, lay, q, qd, g_core, eta_core):
     Omega = 0.5 * h * (x1 + x2) + c * _stacked(_ad(x1, x2))
     Od = 0.5 * h * (d1 + d2) + c * (_stacked(_ad(x1, d2)) - _stacked(_ad(x2, d1)))
     Omega, Od = _kept(Omega), _kept(Od)
-    R, p, Ts, Q = _exp_and_tangent(Omega)
-    # x = eta_c + T Od, then the twist at the step's end: (R^T x_w, R^T (x_v + x_w x p))
+    k, p = _step_rows(Omega)
+    # x = eta_c + T Od; the twist at the step's end: (R^T x_w, R^T (x_v + x_w x p))
     gT = jnp.transpose(g_core[:, :3], (1, 2, 0))[..., lay.leaf_row]
     eT = eta_core.T[:, lay.leaf_row]
-    Tw = _mat_vec(Ts, Od[:3])
-    Tv = _add(_mat_vec(Q, Od[:3]), _mat_vec(Ts, Od[3:]))
+    Tw = _ts(k, Od[:3])
+    Tv = _add(_q(k, Od[:3]), _ts(k, Od[3:]))
     x = _kept(_add(list(eT[:3]), Tw) + _add(list(eT[3:]), Tv))
     xv = _add(list(x[3:]), _cross(x[:3], p))
-    eta = jnp.stack(_mat_vec(R, x[:3], True) + _mat_vec(R, xv, True), axis=1)
     # world pose: (R_c R, R_c p + p_c); world velocities: R_c x_w, R_c xv
     Rc, pc = gT[:, :3], gT[:, 3]
-    cols = [_mat_vec(Rc, R[:, j]) for j in range(3)]
+    R = _kept(_rot_matrix(k))  # formed where the poses or twists are read
+    eta = jnp.stack(_mat_vec(R, x[:3], True) + _mat_vec(R, xv, True), axis=1)
+    cols = [_mat_vec(Rc, [R[i][j] for i in range(3)]) for j in range(3)]
     pw = _add(_mat_vec(Rc, p), list(pc))
     frames = LeafFrames(
         Rc,
@@ -246,12 +300,12 @@ def leaf_rates(data, lay, q, qd, g_core, eta_core):
         p,
         x[:3],
         _stacked(xv),
-        R[:, 0],
+        _stacked([R[i][0] for i in range(3)]),
     )
     zero, unit = jnp.zeros_like(p[0]), jnp.ones_like(p[0])
     g = [[cols[0][i], cols[1][i], cols[2][i], pw[i]] for i in range(3)]
     g = jnp.transpose(_stacked(g + [[zero, zero, zero, unit]]), (2, 0, 1))
-    return g, eta, LeafRecord(R, p, Ts, Q, xi), frames
+    return g, eta, LeafRecord(k, p, R, xi), frames
 
 
 def leaf_wrenches(data, rec: LeafRecord, W, rows=None):
@@ -273,8 +327,8 @@ def leaf_wrenches(data, rec: LeafRecord, W, rows=None):
         Rf = _mat_vec(rec.R, Wt[3:])
         y = _add(_mat_vec(rec.R, Wt[:3]), _cross(rec.p, Rf)) + Rf
         y = _kept(y if rows is None else _add(y, list(rows)))
-    z = _add(_mat_vec(rec.Ts, y[:3], True), _mat_vec(rec.Q, y[3:], True))
-    z = _kept(z + _mat_vec(rec.Ts, y[3:], True))
+    z = _add(_ts(rec.k, y[:3], True), _q(rec.k, y[3:], True))
+    z = _kept(z + _ts(rec.k, y[3:], True))
     x1, x2 = rec.xi[0], rec.xi[1]
     h, c = st.h[None], st.c[None]
     Z1 = 0.5 * h * z - c * _stacked(_ad_transpose(x2, z))
@@ -296,11 +350,11 @@ def leaf_jacobians(data, rec: LeafRecord, J_chain):
     h, c = st.h[None, None], st.c[None, None]
     dO = 0.5 * h * (P1 + P2) + c * (_stacked(_ad(x1, P2)) - _stacked(_ad(x2, P1)))
     dO = _kept(dO)
-    Ts, Q, R, p = (m[..., None, :] for m in (rec.Ts, rec.Q, rec.R, rec.p))
+    k, p = rec.k[:, None], rec.p[:, None]  # rows (1, n) against (n_dof, n)
     Jc = jnp.transpose(J_chain, (1, 2, 0))
-    Tw = _mat_vec(Ts, dO[:3])
-    Tv = _add(_mat_vec(Q, dO[:3]), _mat_vec(Ts, dO[3:]))
+    Tw = _ts(k, dO[:3])
+    Tv = _add(_q(k, dO[:3]), _ts(k, dO[3:]))
     x = _kept(_add(list(Jc[:3]), Tw) + _add(list(Jc[3:]), Tv))
     xv = _add(list(x[3:]), _cross(x[:3], p))
-    J = jnp.stack(_mat_vec(R, x[:3], True) + _mat_vec(R, xv, True))
+    J = jnp.stack(_rot(k, x[:3], True) + _rot(k, xv, True))
     return jnp.transpose(J, (2, 0, 1))
