@@ -350,11 +350,12 @@ def leaf_jacobians(data, rec: LeafRecord, J_chain):
     h, c = st.h[None, None], st.c[None, None]
     dO = 0.5 * h * (P1 + P2) + c * (_stacked(_ad(x1, P2)) - _stacked(_ad(x2, P1)))
     dO = _kept(dO)
-    k, p = rec.k[:, None], rec.p[:, None]  # rows (1, n) against (n_dof, n)
+    # rows (1, n) against (n_dof, n)
+    k, p, R = rec.k[:, None], rec.p[:, None], rec.R[..., None, :]
     Jc = jnp.transpose(J_chain, (1, 2, 0))
     Tw = _ts(k, dO[:3])
     Tv = _add(_q(k, dO[:3]), _ts(k, dO[3:]))
     x = _kept(_add(list(Jc[:3]), Tw) + _add(list(Jc[3:]), Tv))
     xv = _add(list(x[3:]), _cross(x[:3], p))
-    J = jnp.stack(_rot(k, x[:3], True) + _rot(k, xv, True))
+    J = jnp.stack(_mat_vec(R, x[:3], True) + _mat_vec(R, xv, True))
     return jnp.transpose(J, (2, 0, 1))
