@@ -158,7 +158,8 @@ def test_contact_scenes_model_choices():
     3(2) pair (a W of every segment pair would cost more than the explicit steps it
     saves) with the heap's softer
     laws: self-contact sinks the rope's weight by 5e-2 of the radius, the floor four
-    layers of it by 5e-3, friction regularised at 1e-2 m/s.
+    layers of it by 5e-3 (stiffer as the square of a feed faster than 0.4 m/s),
+    friction regularised at 1e-2 m/s.
     """
     solver = SorojaxSolver()
     s = solver.settings(crossing.scenario, n_elements=51, n_frames=3)
@@ -221,3 +222,15 @@ def test_contact_scenes_model_choices():
         rtol=1e-9,
     )
     assert m["controller_gains"] == list(adapter.HEAP_CONTROLLER_GAINS), m
+    # a feed twice as fast lands the rope's end twice as fast: an impact goes
+    # v sqrt(m / k) deep, so the floor is four times as stiff (the same depth);
+    # the default feed (0.4 m/s) and slower ones keep the floor above
+    for speed, scale in ((0.8, 4.0), (0.2, 1.0)):
+        scene = pile.build(speed=speed, friction=0.3, youngs_modulus=1e6)
+        assert adapter._feed_speed(scene) == pytest.approx(speed, rel=1e-12)
+        ck = solver.settings(scene, n_elements=100, n_frames=3)["contact"]
+        np.testing.assert_allclose(
+            ck["plane_stiffness_N_per_m2"] / c["plane_stiffness_N_per_m2"],
+            scale,
+            rtol=1e-9,
+        )

@@ -225,6 +225,14 @@ a coarse model's end carries the inertia of much of its last division: at
 :data:`OBSTACLE_PENETRATION` (5e-2) the pile's end went 6 mm (2.4 radii) into the
 floor, at 5e-3 it stays above it."""
 
+HEAP_FEED_SPEED = 0.4
+"""Feed speed [m/s] up to which :data:`HEAP_FLOOR_PENETRATION` holds (the pile's
+default). A rope fed faster lands its end faster: an impact goes ``v sqrt(m / k)``
+deep, so the floor's stiffness grows as ``(v / HEAP_FEED_SPEED)^2`` above it and the
+end goes no deeper than at this speed (at 0.8 m/s and the benchmark's E of 1e5 and
+1e7 the floor sized for 0.4 m/s let the end go deeper than a radius:
+``RESULTS.contact_too_deep``)."""
+
 HEAP_STICK_VELOCITY = 1e-2
 """Regularised friction's stick velocity [m/s] in a heap: ``mu N / v_s`` per
 sample is a damping rate that would bound the explicit step at
@@ -1038,7 +1046,8 @@ def _laws(scenario: Scenario, method: str, spacing: float) -> _Laws:
     friction is the larger of the two coefficients, static and kinetic alike (the
     benchmark's Coulomb law). A heap (:func:`_heap`) uses
     :data:`HEAP_PENETRATION`, :data:`HEAP_FLOOR_PENETRATION` (on a floor of
-    :data:`PILE_LAYERS` layers) and :data:`HEAP_STICK_VELOCITY` instead.
+    :data:`PILE_LAYERS` layers; stiffer for a feed faster than
+    :data:`HEAP_FEED_SPEED`) and :data:`HEAP_STICK_VELOCITY` instead.
     """
     rods = scenario.rods
     g = float(np.linalg.norm(scenario.gravity)) or 1.0
@@ -1054,7 +1063,12 @@ def _laws(scenario: Scenario, method: str, spacing: float) -> _Laws:
     heap = _heap(scenario)
     v_s = HEAP_STICK_VELOCITY if heap else STICK_VELOCITY
     pen = HEAP_PENETRATION if heap else pen
-    ob_pen = HEAP_FLOOR_PENETRATION if heap else OBSTACLE_PENETRATION
+    ob_pen = OBSTACLE_PENETRATION
+    if heap:
+        ob_pen = HEAP_FLOOR_PENETRATION
+        feed = _feed_speed(scenario)
+        if feed > HEAP_FEED_SPEED * (1 + 1e-9):  # the default feed: as it is
+            ob_pen *= (HEAP_FEED_SPEED / feed) ** 2
     info: dict = {
         "target_penetration": f"{pen:g} of the rod radius",
         "obstacle_target_penetration": f"{ob_pen:g} of the rod radius",
@@ -1260,6 +1274,21 @@ def _mass_damping_points(rate: float, per_point: tuple[tuple[float, ...], ...]):
     return hook
 
 
+def _feed_speed(scenario) -> float:
+    """The fastest driven start's largest speed [m/s] (0 without one)."""
+    speeds = [0.0]
+    for rod in scenario.rods:
+        m = rod.start_motion
+        if m is None or len(m.times) < 2:
+            continue
+        t = np.asarray(m.times, dtype=float)
+        x = np.asarray(m.displacement, dtype=float)
+        dt = np.diff(t)
+        v = np.linalg.norm(np.diff(x, axis=0), axis=1)
+        speeds.extend((v[dt > 0] / dt[dt > 0]).tolist())
+    return max(speeds)
+
+
 def _heap(scenario: Scenario) -> bool:
     """Whether a scene is a heaping rope (dense self-contact: :data:`HEAP_SOLVER`)."""
     return bool(scenario.self_contact and _is_contact_scene(scenario))
@@ -1302,12 +1331,12 @@ def _advance_chunk(
     Integrates from ``t0`` to ``ts[-1]`` saving at ``ts`` (``FRAME_CHUNK`` times,
     non-decreasing; a last chunk repeats its final time). ``y`` is
     ``(batch, 2 n_dof)``, ``angles`` ``(batch, n_times)`` or None. Returns ``(ys,
-    positions, d1, ok, steps)`` with a leading batch axis and then one entry per save
-    time. Shapes depend on neither the frame times nor their number: one compilation
-    serves every chunk of every run of the same scene. ``dt``: constant steps of it
-    (a constant-step solver) instead of adaptive ones at ``rtol``, ``atol``;
-    ``gains``: the adaptive steps' controller gains (``simulate``'s
-    ``controller_gains``).
+    positions, d1, ok, steps, result)`` with a leading batch axis and then one entry
+    per save time (``result``: ``simulate``'s result code). Shapes depend on
+    neither the frame times nor their number: one compilation serves every chunk of
+    every run of the same scene. ``dt``: constant steps of it (a constant-step
+    solver) instead of adaptive ones at ``rtol``, ``atol``; ``gains``: the adaptive
+    steps' controller gains (``simulate``'s ``controller_gains``).
     """
     n = linkage.n_dof
     steps = (
@@ -1334,7 +1363,10 @@ def _advance_chunk(
         ys = jnp.concatenate([tr.q, tr.qd], axis=1)
         g = jax.vmap(lambda q: sj.forward_kinematics(sampler, q))(tr.q)
         ok = (tr.result == sj.RESULTS.successful) & jnp.all(jnp.isfinite(ys))
-        return ys, g[:, nodes][..., :3, 3], g[:, mids][..., :3, 1], ok, tr.num_steps
+        return (
+            ys, g[:, nodes][..., :3, 3], g[:, mids][..., :3, 1], ok, tr.num_steps,
+            tr.result,
+        )  # fmt: skip
 
     if y.shape[0] == 1:  # no batch: a vmap of one costs ~50% more per step
         out = one(y[0], None if angles is None else angles[0])
@@ -1666,7 +1698,7 @@ class SorojaxSolver:
         advance = _advance_long if heap else _advance
         for k in range(1, T, C):
             chunk = np.minimum(np.arange(k, k + C), T - 1)  # pad with the last frame
-            ys, p, d, ok, _ = advance(
+            ys, p, d, ok, _, result = advance(
                 mdl.linkage,
                 mdl.sampler,
                 mdl.nodes,
@@ -1683,9 +1715,14 @@ class SorojaxSolver:
                 HEAP_CONTROLLER_GAINS if heap else None,
             )
             if not bool(jnp.all(ok)):
+                codes = set(np.unique(np.asarray(result._value)).tolist())
+                codes.discard(int(sj.RESULTS.successful._value))
+                why = [sj.RESULTS._index_to_message[c] for c in sorted(codes)]
+                why = why or ["a non-finite state"]
                 raise Diverged(
                     f"sorojax.simulate ({solver}) failed between t = "
-                    f"{times[k - 1]:.4g} and {times[chunk[-1]]:.4g} s",
+                    f"{times[k - 1]:.4g} and {times[chunk[-1]]:.4g} s: "
+                    + "; ".join(why),
                     time=float(times[k - 1]),
                 )
             m = min(C, T - k)
