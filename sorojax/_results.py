@@ -115,6 +115,11 @@ def failed(result: RESULTS) -> bool | Array:
     return int(code) != int(RESULTS.successful._value)
 
 
+def message(code: int) -> str:
+    """The message of the result with integer code ``code`` (``result._value``)."""
+    return RESULTS._index_to_message[int(code)]
+
+
 _Solution = TypeVar("_Solution")
 
 
@@ -130,6 +135,5 @@ def throw_on_failure(solution: _Solution, describe: Callable[[str], str]) -> _So
         q = solution.result.error_if(solution.q, bad)
         return eqx.tree_at(lambda s: s.q, solution, q)
     if bad:
-        message = RESULTS._index_to_message[int(solution.result._value)]
-        raise RuntimeError(describe(message))
+        raise RuntimeError(describe(message(int(solution.result._value))))
     return solution

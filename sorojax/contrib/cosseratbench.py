@@ -105,6 +105,7 @@ from cosseratbench.scenario import Motion, Rod
 
 import sorojax as sj
 from sorojax._jit import _runtime_threads
+from sorojax._results import message
 from sorojax.model._layout import ROD
 
 MODE_NAMES = ("torsion", "bend_y", "bend_z", "stretch", "shear_y", "shear_z")
@@ -229,9 +230,10 @@ HEAP_FEED_SPEED = 0.4
 """Feed speed [m/s] up to which :data:`HEAP_FLOOR_PENETRATION` holds (the pile's
 default). A rope fed faster lands its end faster: an impact goes ``v sqrt(m / k)``
 deep, so the floor's stiffness grows as ``(v / HEAP_FEED_SPEED)^2`` above it and the
-end goes no deeper than at this speed (at 0.8 m/s and the benchmark's E of 1e5 and
-1e7 the floor sized for 0.4 m/s let the end go deeper than a radius:
-``RESULTS.contact_too_deep``)."""
+end goes no deeper than at this speed (at 0.8 m/s with the benchmark's E of 1e7 the
+floor sized for 0.4 m/s let the end go deeper than a radius,
+``RESULTS.contact_too_deep``; with E 1e5 the rope's self-contact still does, see
+docs/limitations.md)."""
 
 HEAP_STICK_VELOCITY = 1e-2
 """Regularised friction's stick velocity [m/s] in a heap: ``mu N / v_s`` per
@@ -1717,7 +1719,7 @@ class SorojaxSolver:
             if not bool(jnp.all(ok)):
                 codes = set(np.unique(np.asarray(result._value)).tolist())
                 codes.discard(int(sj.RESULTS.successful._value))
-                why = [sj.RESULTS._index_to_message[c] for c in sorted(codes)]
+                why = [message(c) for c in sorted(codes)]
                 why = why or ["a non-finite state"]
                 raise Diverged(
                     f"sorojax.simulate ({solver}) failed between t = "

@@ -629,8 +629,15 @@ def _candidates(contact: Contact, g, entry):
     table, c = _broad_phase(contact, g, entry)
     k = _capacity(contact, entry)
     pairs, valid = _pick(table, c, k)
-    over = jnp.zeros((), bool) if c is None else c[-1] > k
-    return pairs, valid, over
+    return pairs, valid, _overflow(c, k)
+
+
+def _overflow(c, k: int):
+    """Whether the broad phase's prefix sum ``c`` holds more candidates than ``k``.
+
+    False without a broad phase (``c`` None: every pair examined).
+    """
+    return jnp.zeros((), bool) if c is None else c[-1] > k
 
 
 def _small_capacity(contact: Contact, entry) -> int | None:
@@ -786,8 +793,7 @@ def _pair_terms(contact: Contact, pairs, g, eta, friction: bool):
                 functools.partial(_pair_pass, *args, small),
                 functools.partial(_pair_pass, *args, K),
             )
-        if c is not None:
-            overflow = overflow | (c[-1] > K)
+        overflow = overflow | _overflow(c, K)
         for smp, S in zip((sa,) if sa is sb else (sa, sb), sums, strict=True):
             R = g[smp.point, :3, :3]
             wrenches.append(

@@ -79,12 +79,12 @@ class LeafRecord(NamedTuple):
     """The leaves' steps, component by component (rows over the leaves).
 
     ``k`` ``(18, n)``: each step's twist ``Omega = (w, v)`` and the scalars of its
-    exp and tangent (:func:`_step_rows`), from which :func:`_rot`, :func:`_ts` and
-    :func:`_q` apply ``R``, ``Ts`` and ``Q`` (exp(Omega) = (R, p), T(Omega) =
-    [[Ts, 0], [Q, Ts]]) to rows without forming them; ``p`` ``(3, n)``; ``R``
-    ``(3, 3, n)``, formed for the leaves' poses and twists and the wrenches given on
-    them (XLA drops it where none of those is read); ``xi`` ``(2, 6, n)``: the
-    strains at the step's Zanna points.
+    exp and tangent (:func:`_step_rows`), from which :func:`_ts` and :func:`_q`
+    apply ``Ts`` and ``Q`` (T(Omega) = [[Ts, 0], [Q, Ts]]) to rows without forming
+    them; ``p`` ``(3, n)`` and ``R`` ``(3, 3, n)``: exp(Omega), ``R`` formed
+    (:func:`_rot_matrix`) for the leaves' poses, twists and Jacobians and the
+    wrenches given on them (XLA drops it where none of those is read); ``xi`` ``(2,
+    6, n)``: the strains at the step's Zanna points.
     """
 
     k: Array
@@ -150,13 +150,15 @@ def _step_rows(Omega):
     exp_and_tangent`, by Horner's rule, each coefficient's own), ``theta^2`` and
     the products of ``Q`` (:func:`_q`) ``0.5 - 2 D theta^2``, ``w.v (3D - C)``,
     ``2 w.v (F theta^2 - C)`` and ``2 F w.v``; ``p`` ``(3, n)``: exp's translation.
-    ``R``, ``Ts`` and ``Q`` are applied from these (each a cross product, two or
-    three dot products and a sum of scaled rows) rather than formed: their nine
-    entries each cost more than the products they serve. The closed forms (a square
-    root, a sine, a cosine and five divisions per step) are evaluated only where
-    some step turns by a radian or more (a ``lax.cond``): XLA's CPU runs sine and
-    cosine element by element (~9 ns per value and function, the largest kernel of
-    a thousand leaves), and short steps take the series.
+    ``Ts`` and ``Q`` are applied from these (each a cross product, two or three dot
+    products and a sum of scaled rows) rather than formed: their nine entries each
+    cost more than the products they serve. ``R`` is formed from them
+    (:func:`_rot_matrix`), read by several products where it is needed. The
+    closed forms (a square root, a sine, a cosine and five divisions per step) are
+    evaluated only where some step turns by a radian or more (a ``lax.cond``):
+    XLA's CPU runs sine and cosine element by element (~9 ns per value and
+    function, the largest kernel of a thousand leaves), and short steps take the
+    series.
     """
     w, v = Omega[:3], Omega[3:]
     th2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
@@ -194,14 +196,6 @@ def _step_rows(Omega):
 
 def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-def _rot(k, a, transpose: bool = False):
-    """``R a`` (or ``R^T a``), ``R = I + A W + B W^2``, for rows ``a``: 3 rows."""
-    w, A, B, th2 = k[0:3], k[9], k[10], k[13]
-    wa, wxa = _dot(w, a), _cross(w, a)
-    sA = -A if transpose else A
-    return [a[i] + sA * wxa[i] + B * (w[i] * wa - th2 * a[i]) for i in range(3)]
 
 
 def _ts(k, a, transpose: bool = False):
