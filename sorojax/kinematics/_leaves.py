@@ -20,7 +20,12 @@ an optimisation barrier, so that XLA stores the stack rather than moving its wor
 into the kernels that read it. The barrier is lifted before XLA's fusion, which may
 still recompute a few terms in a reader; dividing the stack by ones computed at run
 time (an expensive operation, never recomputed) measured slower, a division per
-value costing more than what it saves.
+value costing more than what it saves. A stack's rows are each formed whole before
+it (``[a[i] + c * b[i] for i in range(6)]``, not ``a + c * stack(b)``): a stack that
+further arithmetic reads is a kernel of its own, writing rows another kernel reads
+back, where one kernel forms each row in a single pass. A stack's kernel evaluates
+each row's expression on its own, so terms shared by its rows are stored before
+(the steps' scalars ``k``: ``p`` reads them from their stack).
 
 In the dynamics the leaves' contact with the obstacles reads their world positions
 and velocities (:class:`LeafFrames`: from the chain point's frame, without the
@@ -78,8 +83,9 @@ class LeafFrames(NamedTuple):
 class LeafRecord(NamedTuple):
     """The leaves' steps, component by component (rows over the leaves).
 
-    ``k`` ``(18, n)``: each step's twist ``Omega = (w, v)`` and the scalars of its
-    exp and tangent (:func:`_step_rows`), from which :func:`_ts` and :func:`_q`
+    ``k``: 18 rows ``(n,)``, each step's twist ``Omega = (w, v)`` (the stored
+    twists' rows) and the scalars of its exp and tangent (stored, :func:`_step_rows`),
+    from which :func:`_ts` and :func:`_q`
     apply ``Ts`` and ``Q`` (T(Omega) = [[Ts, 0], [Q, Ts]]) to rows without forming
     them; ``p`` ``(3, n)`` and ``R`` ``(3, 3, n)``: exp(Omega), ``R`` formed
     (:func:`_rot_matrix`) for the leaves' poses, twists and Jacobians and the
@@ -87,7 +93,7 @@ class LeafRecord(NamedTuple):
     6, n)``: the strains at the step's Zanna points.
     """
 
-    k: Array
+    k: list[Array]
     p: Array
     R: Array
     xi: Array
@@ -145,9 +151,10 @@ def _add(a, b):
 def _step_rows(Omega):
     """``(k, p)``: the rows of :class:`LeafRecord` for the steps ``Omega`` ``(6, n)``.
 
-    ``k``: ``w``, ``v``, ``w x v``, the exp's coefficients ``A, B, C, D`` (the same
-    closed forms and Taylor series as :func:`~sorojax.kinematics._step.
-    exp_and_tangent`, by Horner's rule, each coefficient's own), ``theta^2`` and
+    ``k``: ``w``, ``v`` (the rows of ``Omega``, stored by the caller), ``w x v``,
+    the exp's coefficients ``A, B, C, D`` (the same closed forms and Taylor series
+    as :func:`~sorojax.kinematics._step.exp_and_tangent`, by Horner's rule, each
+    coefficient's own), ``theta^2`` and
     the products of ``Q`` (:func:`_q`) ``0.5 - 2 D theta^2``, ``w.v (3D - C)``,
     ``2 w.v (F theta^2 - C)`` and ``2 F w.v``; ``p`` ``(3, n)``: exp's translation.
     ``Ts`` and ``Q`` are applied from these (each a cross product, two or three dot
@@ -183,13 +190,16 @@ def _step_rows(Omega):
             series = series * th2 + ck
         coef.append(jnp.where(small, series, closed_form))
     A, B, C, D, F = coef
-    wv = w[0] * v[0] + w[1] * v[1] + w[2] * v[2]
+    wv = _dot(w, v)
     wxv = _cross(w, v)
-    k = _kept(
-        list(w) + list(v) + wxv
+    k = list(w) + list(v) + list(_kept(
+        wxv
         + [A, B, C, D, th2, 0.5 - 2.0 * D * th2, wv * (3.0 * D - C),
            2.0 * wv * (F * th2 - C), 2.0 * F * wv]
-    )  # fmt: skip
+    ))  # fmt: skip
+    # p from the stored rows: their producers then run once, in the stack's kernel
+    w, v, wxv, B, C, th2 = k[0:3], k[3:6], k[6:9], k[10], k[11], k[13]
+    wv = _dot(w, v)
     p = [v[i] + B * wxv[i] + C * (w[i] * wv - th2 * v[i]) for i in range(3)]
     return k, _kept(p)
 
@@ -265,10 +275,11 @@ def leaf_rates(data, lay, q, qd, g_core, eta_core):
     st = data.leaf_steps
     xi, xd = st.compact.strains(q, st.xi_ref_t), st.compact.strains(qd)
     xi = _kept(xi)
-    h, c = st.h[None], st.c[None]  # rows against (6, n) stacks
+    h, c = st.h, st.c
     x1, x2, d1, d2 = xi[0], xi[1], xd[0], xd[1]
-    Omega = 0.5 * h * (x1 + x2) + c * _stacked(_ad(x1, x2))
-    Od = 0.5 * h * (d1 + d2) + c * (_stacked(_ad(x1, d2)) - _stacked(_ad(x2, d1)))
+    a12, a1d, a2d = _ad(x1, x2), _ad(x1, d2), _ad(x2, d1)
+    Omega = [0.5 * h * (x1[i] + x2[i]) + c * a12[i] for i in range(6)]
+    Od = [0.5 * h * (d1[i] + d2[i]) + c * (a1d[i] - a2d[i]) for i in range(6)]
     Omega, Od = _kept(Omega), _kept(Od)
     k, p = _step_rows(Omega)
     # x = eta_c + T Od; the twist at the step's end: (R^T x_w, R^T (x_v + x_w x p))
@@ -324,9 +335,10 @@ def leaf_wrenches(data, rec: LeafRecord, W, rows=None):
     z = _add(_ts(rec.k, y[:3], True), _q(rec.k, y[3:], True))
     z = _kept(z + _ts(rec.k, y[3:], True))
     x1, x2 = rec.xi[0], rec.xi[1]
-    h, c = st.h[None], st.c[None]
-    Z1 = 0.5 * h * z - c * _stacked(_ad_transpose(x2, z))
-    Z2 = 0.5 * h * z + c * _stacked(_ad_transpose(x1, z))
+    h, c = st.h, st.c
+    t2, t1 = _ad_transpose(x2, z), _ad_transpose(x1, z)
+    Z1 = _stacked([0.5 * h * z[i] - c * t2[i] for i in range(6)])
+    Z2 = _stacked([0.5 * h * z[i] + c * t1[i] for i in range(6)])
     return y.T, st.compact.transpose((Z1, Z2), data.n_dof)
 
 
@@ -341,11 +353,11 @@ def leaf_jacobians(data, rec: LeafRecord, J_chain):
     st = data.leaf_steps
     P1, P2 = st.compact.columns(data.n_dof)  # (6, n_dof, n) at each node
     x1, x2 = rec.xi[0][:, None], rec.xi[1][:, None]  # (6, 1, n) against (n_dof, n)
-    h, c = st.h[None, None], st.c[None, None]
-    dO = 0.5 * h * (P1 + P2) + c * (_stacked(_ad(x1, P2)) - _stacked(_ad(x2, P1)))
-    dO = _kept(dO)
+    h, c = st.h[None], st.c[None]  # rows against (n_dof, n)
+    a12, a21 = _ad(x1, P2), _ad(x2, P1)
+    dO = _kept([0.5 * h * (P1[i] + P2[i]) + c * (a12[i] - a21[i]) for i in range(6)])
     # rows (1, n) against (n_dof, n)
-    k, p, R = rec.k[:, None], rec.p[:, None], rec.R[..., None, :]
+    k, p, R = [r[None] for r in rec.k], rec.p[:, None], rec.R[..., None, :]
     Jc = jnp.transpose(J_chain, (1, 2, 0))
     Tw = _ts(k, dO[:3])
     Tv = _add(_q(k, dO[:3]), _ts(k, dO[3:]))
