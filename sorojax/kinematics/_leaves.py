@@ -83,9 +83,8 @@ class LeafFrames(NamedTuple):
 class LeafRecord(NamedTuple):
     """The leaves' steps, component by component (rows over the leaves).
 
-    ``k``: 18 rows ``(n,)``, each step's twist ``Omega = (w, v)`` (the stored
-    twists' rows) and the scalars of its exp and tangent (stored, :func:`_step_rows`),
-    from which :func:`_ts` and :func:`_q`
+    ``k`` ``(18, n)``: each step's twist ``Omega = (w, v)`` and the scalars of its
+    exp and tangent (:func:`_step_rows`), from which :func:`_ts` and :func:`_q`
     apply ``Ts`` and ``Q`` (T(Omega) = [[Ts, 0], [Q, Ts]]) to rows without forming
     them; ``p`` ``(3, n)`` and ``R`` ``(3, 3, n)``: exp(Omega), ``R`` formed
     (:func:`_rot_matrix`) for the leaves' poses, twists and Jacobians and the
@@ -93,7 +92,7 @@ class LeafRecord(NamedTuple):
     6, n)``: the strains at the step's Zanna points.
     """
 
-    k: list[Array]
+    k: Array
     p: Array
     R: Array
     xi: Array
@@ -151,10 +150,9 @@ def _add(a, b):
 def _step_rows(Omega):
     """``(k, p)``: the rows of :class:`LeafRecord` for the steps ``Omega`` ``(6, n)``.
 
-    ``k``: ``w``, ``v`` (the rows of ``Omega``, stored by the caller), ``w x v``,
-    the exp's coefficients ``A, B, C, D`` (the same closed forms and Taylor series
-    as :func:`~sorojax.kinematics._step.exp_and_tangent`, by Horner's rule, each
-    coefficient's own), ``theta^2`` and
+    ``k``: ``w``, ``v``, ``w x v``, the exp's coefficients ``A, B, C, D`` (the same
+    closed forms and Taylor series as :func:`~sorojax.kinematics._step.
+    exp_and_tangent`, by Horner's rule, each coefficient's own), ``theta^2`` and
     the products of ``Q`` (:func:`_q`) ``0.5 - 2 D theta^2``, ``w.v (3D - C)``,
     ``2 w.v (F theta^2 - C)`` and ``2 F w.v``; ``p`` ``(3, n)``: exp's translation.
     ``Ts`` and ``Q`` are applied from these (each a cross product, two or three dot
@@ -192,11 +190,11 @@ def _step_rows(Omega):
     A, B, C, D, F = coef
     wv = _dot(w, v)
     wxv = _cross(w, v)
-    k = list(w) + list(v) + list(_kept(
-        wxv
+    k = _kept(
+        list(w) + list(v) + wxv
         + [A, B, C, D, th2, 0.5 - 2.0 * D * th2, wv * (3.0 * D - C),
            2.0 * wv * (F * th2 - C), 2.0 * F * wv]
-    ))  # fmt: skip
+    )  # fmt: skip
     # p from the stored rows: their producers then run once, in the stack's kernel
     w, v, wxv, B, C, th2 = k[0:3], k[3:6], k[6:9], k[10], k[11], k[13]
     wv = _dot(w, v)
@@ -357,7 +355,7 @@ def leaf_jacobians(data, rec: LeafRecord, J_chain):
     a12, a21 = _ad(x1, P2), _ad(x2, P1)
     dO = _kept([0.5 * h * (P1[i] + P2[i]) + c * (a12[i] - a21[i]) for i in range(6)])
     # rows (1, n) against (n_dof, n)
-    k, p, R = [r[None] for r in rec.k], rec.p[:, None], rec.R[..., None, :]
+    k, p, R = rec.k[:, None], rec.p[:, None], rec.R[..., None, :]
     Jc = jnp.transpose(J_chain, (1, 2, 0))
     Tw = _ts(k, dO[:3])
     Tv = _add(_q(k, dO[:3]), _ts(k, dO[3:]))
