@@ -28,7 +28,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float
 from .._jit import jit
 from .._results import RESULTS
 from ..kinematics._api import _as_q
-from ..kinematics._leaves import _add, _cross, _mat_vec
+from ..kinematics._leaves import _add, _cross, _dot, _mat_vec
 from ..model._contact import (
     Contact,
     Plane,
@@ -422,10 +422,7 @@ def _segment_closest(p0, p1, q0, q1):
     d2 = [y - x for x, y in zip(q0, q1, strict=True)]
     r = [x - y for x, y in zip(p0, q0, strict=True)]
 
-    def dot(x, y):
-        return x[0] * y[0] + x[1] * y[1] + x[2] * y[2]
-
-    a, e, b, c, f = dot(d1, d1), dot(d2, d2), dot(d1, d2), dot(d1, r), dot(d2, r)
+    a, e, b, c, f = _dot(d1, d1), _dot(d2, d2), _dot(d1, d2), _dot(d1, r), _dot(d2, r)
     den = a * e - b * b
     parallel = den <= 1e-12 * a * e
     inv = _stored(

@@ -166,7 +166,7 @@ def _step_rows(Omega):
     series.
     """
     w, v = Omega[:3], Omega[3:]
-    th2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
+    th2 = _dot(w, w)
     small = th2 < _SMALL
 
     def closed_rows(th2):
