@@ -520,7 +520,7 @@ def test_prepared_simulate_and_statics_compile_nothing_at_their_calls(
     assert ahead is not None  # the integration's program (default level)
     sj.prepare(sj.solve_statics, arm, q, u=jnp.array([0.3]))
     ahead.result()
-    for fn in (simulate_module._saved_inputs, _solve_statics):  # compiles ahead
+    for fn in (simulate_module._saved_extras, _solve_statics):  # compiles ahead
         for program in list(fn.programs.values()):
             if isinstance(program, concurrent.futures.Future):
                 program.result()
@@ -529,7 +529,7 @@ def test_prepared_simulate_and_statics_compile_nothing_at_their_calls(
         sol = sj.solve_statics(arm, q, u=jnp.array([0.5]))
         traj = sj.simulate(arm, 0.3, sol.q, **settings)
     # (single operations outside the programs may compile on first use)
-    ours = ("_simulate", "_saved_inputs", "_solve_statics")
+    ours = ("_simulate", "_saved_extras", "_solve_statics")
     programs = [name for name in compiled if any(p in name for p in ours)]
     assert not programs, f"compiled again at the prepared calls: {programs}"
     assert traj.efforts.shape == (4, 1)
@@ -612,23 +612,66 @@ def test_tiered_mode_applies_to_top_level_calls_of_sorojax_functions(
     assert len(_solve_statics.programs) == n_programs
 
 
+def test_top_level_simulate_computes_the_contact_report_in_a_program_of_its_own(
+    tiered,
+):
+    """In the compile tiers, at top level, the contact report at the save points
+    comes from the extras' program (``_saved_extras``, at -O0: the integration's
+    program compiles without the contacts' second copy), and so does its result
+    code; inside a user's ``jit`` it is part of the one program. Either way it is
+    ``contact_state`` at the trajectory's saved states (1e-12 relative: the same
+    arithmetic, separately compiled), and a broad phase that overflows is the
+    trajectory's result code."""
+    from test_contact_kernels import _crossing, _rod
+
+    lk = _rod(12)  # a rod on a floor, 12 samples, settling from rest
+    q0 = jnp.zeros(lk.n_dof)
+    settings = dict(n_save=3, solver="ros34pw2", throw=False)
+    before = dict(simulate_module._saved_extras.programs)
+    top = sj.simulate(lk, 0.05, q0, **settings)
+    new = [
+        k for k in simulate_module._saved_extras.programs if k not in before
+    ]  # fmt: skip
+    assert len(new) == 1, f"{len(new)} programs for the report (compiled ahead: 1)"
+    assert top.efforts is None  # nothing prescribed: the report only
+    inside = jax.jit(
+        lambda q0: sj.simulate(lk, 0.05, q0, **settings),
+        compiler_options=sj.compiler_options(),
+    )(q0)
+    assert top.result == inside.result == sj.RESULTS.successful
+    assert top.contact.force.shape == (3, 12, 3)
+    assert float(jnp.max(jnp.abs(top.contact.force))) > 0.0  # in contact
+    state = jax.vmap(lambda q, qd, t: sj.contact_state(lk, q, qd, t))
+    for tr in (top, inside):
+        for a, b in zip(
+            jax.tree.leaves(tr.contact),
+            jax.tree.leaves(state(tr.q, tr.qd, tr.t)),
+            strict=True,
+        ):
+            np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-13)
+    over = _crossing(2)  # fewer candidate pairs than the overlapping ones
+    tr = sj.simulate(over, 0.01, jnp.zeros(over.n_dof), n_save=2, max_steps=8,
+                     throw=False)  # fmt: skip
+    assert tr.result == sj.RESULTS.contact_overflow
+
+
 def test_top_level_simulate_computes_efforts_in_a_program_of_their_own(
     tiered, arm, arm_motion
 ):
     """In the compile tiers, at top level, the inputs, prescribed efforts and
     multipliers at the save points come from a program of their own
-    (``_saved_inputs``, at -O0: the integration's program compiles without that
+    (``_saved_extras``, at -O0: the integration's program compiles without that
     copy of the right-hand side); inside a user's ``jit`` they are part of the one
     program. Both give the same values (1e-12 relative: same arithmetic, separately
     compiled)."""
     _, (q_static, _, *inside) = arm_motion  # from inside one jitted program
-    before = dict(simulate_module._saved_inputs.programs)
+    before = dict(simulate_module._saved_extras.programs)
     top = sj.simulate(arm, 0.2, q_static, u=_angle, n_save=3, solver="ros34pw2")
     # the efforts' own program: compiled ahead (in a thread, while the integration
     # compiled and ran) for the trajectory's shapes, and used: one new program
     new = {
         k: p
-        for k, p in simulate_module._saved_inputs.programs.items()
+        for k, p in simulate_module._saved_extras.programs.items()
         if k not in before
     }
     assert len(new) == 1, f"{len(new)} programs for the efforts (compiled ahead: 1)"

@@ -34,6 +34,7 @@ from sorojax.kinematics._recursion import (
     leaf_sums,
     point_jacobians,
     point_rates,
+    poses_and_jacobians,
 )
 from sorojax.model._precompute import precompute
 
@@ -175,6 +176,19 @@ def test_leaf_sums_equal_a_scatter_add(rod):
     assert np.count_nonzero(lay.leaf_stop > lay.leaf_first) > 1
     sums = np.asarray(leaf_sums(lay, jnp.asarray(y)))
     assert np.max(np.abs(sums - ref)) <= 1e-13 * np.max(np.abs(ref))
+
+
+@pytest.mark.parametrize("n", [12, 40])
+def test_twists_as_one_jacobian_column_equal_the_dynamics_twists(n, state):
+    """The contact report's twists, ``J qd`` formed as one column (no Jacobian),
+    equal the dynamics' recursion of twists (the leaves' twists by the stacked
+    kernels with 12 samples, by their own with 40) to rounding: ``eta = J qd``."""
+    data = precompute(_rod(n))
+    assert _leaves.applies(data) == (n == 40)
+    q, qd = state
+    g, Jv = jax.jit(lambda q, qd: poses_and_jacobians(data, q, qd[:, None]))(q, qd)
+    pr = jax.jit(lambda q, qd: point_rates(data, q, qd))(q, qd)
+    _close((g, Jv[..., 0]), (pr.g, pr.eta), 1e-12)
 
 
 def test_vmap_equals_plain_calls(rod, state):

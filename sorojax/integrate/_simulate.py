@@ -420,7 +420,7 @@ def _simulate(
     adjoint: diffrax.AbstractAdjoint,
     u_fn,
     u_const: Array,
-    inputs_inline: bool,
+    extras_inline: bool,
 ) -> Trajectory:
     data = precompute(linkage)
     y0 = consistent_start(linkage, data, t0, y0, u_fn, u_const)
@@ -446,17 +446,13 @@ def _simulate(
     )
     n = y0.shape[0] // 2
     assert sol.ys is not None and sol.ts is not None and sol.stats is not None
-    extra = {}
-    if inputs_inline and _needs_inputs(linkage):
-        u, efforts, lam = _inputs_at(
-            linkage, data, sol.ts, sol.ys, u_fn, u_const, generalized_force, False
-        )
-        extra = {"u": u, "efforts": efforts, "lam": lam}
     result = _result_code(sol, isinstance(controller, diffrax.ConstantStepSize))
-    if linkage.contact is not None:  # the contact report, in the same program
-        extra["contact"], result = contact_report(
-            linkage, data, sol.ts, sol.ys[:, :n], sol.ys[:, n:], result
-        )
+    extra = {}
+    if extras_inline:  # else computed by _saved_extras
+        extra, result = _extras_at(
+            linkage, data, sol.ts, sol.ys, u_fn, u_const, generalized_force, result,
+            False,
+        )  # fmt: skip
     return Trajectory(
         solver=type(solver).__name__,
         t=sol.ts,
@@ -487,26 +483,59 @@ def _inputs_at(linkage, data, ts, ys, u_fn, u_const, generalized_force, batched)
     return st.u, st.efforts, st.lam
 
 
-@jit
-def _saved_inputs(linkage, ts, q, qd, u_fn, u_const, generalized_force):
-    """:func:`_inputs_at` as a program of its own, for top-level ``simulate`` calls.
+def _needs_extras(linkage: Linkage) -> bool:
+    """Whether a trajectory carries more than its states at the save points."""
+    return _needs_inputs(linkage) or linkage.contact is not None
 
-    It holds a copy of the right-hand side: inside the integration's program it
-    added ~1.5 s to that program's compile at XLA's default level (the manual
-    hybrid's dynamics 2.6 -> 4.1 s), where on its own it is compiled in sorojax's
-    tiers (at -O0: 0.9 s; it runs once per trajectory), its save points in one
-    batch (at -O0 the grasp's 61 take 28 ms, against 7.7 ms once compiled at the
+
+def _extras_at(
+    linkage, data, ts, ys, u_fn, u_const, generalized_force, result, batched
+):  # fmt: skip
+    """``(extras, result)``: :class:`Trajectory` fields at the save points.
+
+    The inputs, prescribed efforts and loop multipliers (:func:`_inputs_at`) and
+    the contact report (:func:`~sorojax.dynamics._contact.contact_report`, which
+    may turn ``result`` into a contact code); ``batched``: the efforts' save points
+    in one batch (:func:`_inputs_at`).
+    """
+    extra = {}
+    if _needs_inputs(linkage):
+        u, efforts, lam = _inputs_at(
+            linkage, data, ts, ys, u_fn, u_const, generalized_force, batched
+        )
+        extra = {"u": u, "efforts": efforts, "lam": lam}
+    if linkage.contact is not None:
+        n = ys.shape[1] // 2
+        extra["contact"], result = contact_report(
+            linkage, data, ts, ys[:, :n], ys[:, n:], result
+        )
+    return extra, result
+
+
+@jit
+def _saved_extras(linkage, ts, q, qd, u_fn, u_const, generalized_force, result):
+    """:func:`_extras_at` as a program of its own, for top-level ``simulate`` calls.
+
+    The efforts hold a copy of the right-hand side and the contact report one of
+    the contacts' kinematics and geometry: inside the integration's program,
+    compiled at XLA's default level, they lengthen its compile (the efforts the
+    manual hybrid's dynamics by ~1.5 s, 2.6 against 4.1 s; the report the grasp's
+    by ~2 s, a first call of 10.2 against 7.6 s), where on their own they are
+    compiled in sorojax's tiers (-O0 first; they run once per trajectory), in a
+    thread while the integration compiles, the efforts' save points in one batch
+    (at -O0 the grasp's 61 take 28 ms, against 7.7 ms once compiled at the
     default level; the tiers' second compile starts when their budget is spent,
     and one started at the first call shares the 2-core CPU with the calls that
     follow). With every program at the default level (``SOROJAX_COMPILE=full``)
-    it stays inside. It takes ``q`` and ``qd`` as the trajectory holds them
+    they stay inside. It takes ``q`` and ``qd`` as the trajectory holds them
     (joined here, not by an eager operation that would compile a program of its
     own).
     """
     ys = jnp.concatenate([q, qd], axis=1)
-    return _inputs_at(
-        linkage, precompute(linkage), ts, ys, u_fn, u_const, generalized_force, True
-    )
+    return _extras_at(
+        linkage, precompute(linkage), ts, ys, u_fn, u_const, generalized_force,
+        result, True,
+    )  # fmt: skip
 
 
 def simulate(
@@ -619,29 +648,31 @@ def simulate(
         max_steps, generalized_force, u, progress, adjoint, controller_gains,
     )  # fmt: skip
     with _errors_as_nans():
-        # The efforts' program depends on the trajectory's shapes only: it is traced
-        # and compiled in a thread while the integration compiles and runs (their
-        # first call waits for it; manual hybrid example 1.7 s of trace, lowering
-        # and -O0 compile taken off its path). The integration's own trace comes
-        # first, alone: two traces at once take turns on Python's lock, and the
-        # integration's is on the call's path (the grasp's first call: its
-        # integration compiled 1.9 s sooner).
+        # The extras' program (efforts, contact report) depends on the
+        # trajectory's shapes only: it is traced and compiled in a thread while
+        # the integration compiles and runs (their first call waits for it; manual
+        # hybrid example 1.7 s of trace, lowering and -O0 compile taken off its
+        # path). The integration's own trace comes first, alone: two traces at
+        # once take turns on Python's lock, and the integration's is on the call's
+        # path (the grasp's first call: its integration compiled 1.9 s sooner).
         ahead = []
         if plan.separate:
             _simulate.lower_first(*plan.args)
-            ahead = [f for f in [_saved_inputs.compile_ahead(*plan.inputs_args)] if f]
+            ahead = [f for f in [_saved_extras.compile_ahead(*plan.extras_args)] if f]
         try:
             traj = _simulate(*plan.args)
         finally:  # the thread traces under _errors_as_nans too
             if ahead:
                 concurrent.futures.wait(ahead)
         if plan.separate:
-            _, _, _, _, u_fn, u_const, gf = plan.inputs_args
-            inputs = _saved_inputs(linkage, traj.t, traj.q, traj.qd, u_fn, u_const, gf)
+            _, _, _, _, u_fn, u_const, gf, _ = plan.extras_args
+            extra, result = _saved_extras(
+                linkage, traj.t, traj.q, traj.qd, u_fn, u_const, gf, traj.result
+            )
             traj = eqx.tree_at(
-                lambda tr: (tr.u, tr.efforts, tr.lam),
+                lambda tr: [getattr(tr, k) for k in extra] + [tr.result],
                 traj,
-                inputs,
+                list(extra.values()) + [result],
                 is_leaf=lambda x: x is None,
             )
     if not throw:
@@ -772,8 +803,8 @@ class _Plan(NamedTuple):
     """What :func:`simulate` decided on the host: the compiled core's arguments."""
 
     args: tuple  # of _simulate
-    separate: bool  # the efforts at the save points are a program of their own
-    inputs_args: tuple  # of _saved_inputs, with the save points' shapes
+    separate: bool  # the extras at the save points are a program of their own
+    extras_args: tuple  # of _saved_extras, with the save points' shapes
 
 
 def _plan(
@@ -840,10 +871,10 @@ def _plan(
     meter = diffrax.TqdmProgressMeter() if progress else diffrax.NoProgressMeter()
     adjoint = diffrax.RecursiveCheckpointAdjoint() if adjoint is None else adjoint
     _check_adjoint(adjoint, solver_)
-    # In the compile tiers the efforts at the save points are a program of their
-    # own, compiled at -O0 (see _saved_inputs); compiled at the default level they
-    # cost about as much inside the integration's program as apart, and inside a
-    # trace they are part of the caller's program.
+    # In the compile tiers the efforts and the contact report at the save points
+    # are a program of their own, compiled at -O0 (see _saved_extras); compiled
+    # at the default level they cost about as much inside the integration's
+    # program as apart, and inside a trace they are part of the caller's program.
     inline = not in_tiers()
     args = (
         linkage, y0, t0_, t1_, ts_, solver_, controller, dt0_, max_steps,
@@ -853,16 +884,17 @@ def _plan(
     shapes = np.zeros((ts_.shape[0], y0.shape[0] // 2), y0.dtype)
     return _Plan(
         args,
-        not inline and _needs_inputs(linkage),
-        (linkage, ts_, shapes, shapes, u_fn, u_const, generalized_force),
-    )
+        not inline and _needs_extras(linkage),
+        (linkage, ts_, shapes, shapes, u_fn, u_const, generalized_force,
+         RESULTS.successful),
+    )  # fmt: skip
 
 
 def prepare_simulate(*args, **kwargs) -> concurrent.futures.Future | None:
     """Compile the programs of ``simulate(...)`` (same arguments) in a worker thread.
 
     :func:`sorojax.prepare` with :func:`simulate`. Traces and lowers the
-    integration's program (and, in the compile tiers, the efforts' program) here;
+    integration's program (and, in the compile tiers, the extras' program) here;
     their XLA compiles run in a worker thread while the caller goes on, and the
     later ``simulate`` call with arguments of the same shapes and the same settings
     waits for them instead of compiling. Nothing is integrated. Array values do not
@@ -876,7 +908,7 @@ def prepare_simulate(*args, **kwargs) -> concurrent.futures.Future | None:
     with _errors_as_nans():
         future = _simulate.prepare(*plan.args)
     if plan.separate:
-        _saved_inputs.prepare(*plan.inputs_args)
+        _saved_extras.prepare(*plan.extras_args)
     return future
 
 
