@@ -465,10 +465,11 @@ def jit(fun: Callable, *, tiered: bool = True, long_run: bool = False) -> Callab
         """Start compiling the program of ``call(*args, **kwargs)`` in a thread.
 
         For a call whose arguments' shapes are known before their values (the
-        efforts at a trajectory's save points, while the integration runs): the
-        trace, the lowering and the -O0 compile run beside the caller's work, and
-        the call waits for them. Only where the call would compile in tiers
-        (elsewhere nothing is done: None). Returns the future of the program.
+        efforts and contact report at a trajectory's save points, while the
+        integration runs): the trace, the lowering and the -O0 compile run beside
+        the caller's work, and the call waits for them. Only where the call would
+        compile in tiers (elsewhere nothing is done: None). Returns the future of
+        the program.
         """
         if not (_top_level() and tiers_for(compile_mode())):
             return None
