@@ -195,7 +195,8 @@ def _step_rows(Omega):
         + [A, B, C, D, th2, 0.5 - 2.0 * D * th2, wv * (3.0 * D - C),
            2.0 * wv * (F * th2 - C), 2.0 * F * wv]
     )  # fmt: skip
-    # p from the stored rows: its kernel evaluates no coefficient's series again
+    # p = Ts v (:func:`_ts` with a = v), from the stored rows and their w x v: its
+    # kernel evaluates no coefficient's series or cross product again
     w, v, wxv, B, C, th2 = k[0:3], k[3:6], k[6:9], k[10], k[11], k[13]
     wv = _dot(w, v)
     p = [v[i] + B * wxv[i] + C * (w[i] * wv - th2 * v[i]) for i in range(3)]
